@@ -1,0 +1,1 @@
+"""The `fusionkit` command."""

@@ -1,0 +1,162 @@
+"""Base classes of everything a plugin can provide.
+
+A plugin returns these classes from its registration hooks (see `hookspecs.py`). Each class
+declares a unique `name`, a one-line `summary`, and a JSON `schema` for the keys of its config
+entry (besides `type`, `label` and, for factors, `robust`). Keys named in `robot_fields` must
+name a robot of the config and keys in `stream_fields` a stream: the core checks them before
+any work starts. `check()` adds semantic checks; raise `spec.error(key, message)`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from .config.yamlio import Document
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .data.stream import Stream
+    from .graph.builder import BuildContext
+    from .robots.description import RobotDescription
+
+
+@dataclass
+class Spec:
+    """One entry of a config list (a factor, source, initializer) with its location for errors."""
+
+    data: dict
+    doc: Document
+    path: tuple
+
+    @property
+    def type(self) -> str:
+        return self.data["type"]
+
+    @property
+    def label(self) -> str:
+        return self.data.get("label") or f"{self.path[0]}[{self.path[1]}]:{self.type}"
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self.data.get(key, default)
+
+    def error(self, key: str | tuple | None, message: str):
+        keys = () if key is None else (key if isinstance(key, tuple) else (key,))
+        return self.doc.error(self.path + keys, message)
+
+
+class Component(ABC):
+    """Common declaration of every pluggable class."""
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    schema: ClassVar[dict] = {"type": "object", "properties": {}, "additionalProperties": False}
+    robot_fields: ClassVar[tuple[str, ...]] = ()
+    stream_fields: ClassVar[tuple[str, ...]] = ()
+
+    def check(self, spec: Spec, scope: "CheckScope") -> None:
+        """Semantic checks beyond the schema (e.g. a referenced robot parameter exists)."""
+
+
+class CheckScope:
+    """What `check()` may look at: robot descriptions and stream column names (not data)."""
+
+    def __init__(self, robots: dict[str, "RobotDescription"], stream_columns: dict[str, tuple[str, ...]]):
+        self.robots = robots
+        self.stream_columns = stream_columns
+
+    def require_parameter(self, spec: Spec, robot_key: str, param_key: str, vartype: str | None = None) -> None:
+        """Error unless `spec[param_key]` names a parameter of robot `spec[robot_key]`."""
+        desc = self.robots[spec[robot_key]]
+        name = spec[param_key]
+        if name not in desc.parameters:
+            raise spec.error(param_key, f"robot {spec[robot_key]!r} has no parameter {name!r}; it has: "
+                             f"{', '.join(sorted(desc.parameters)) or '(none)'}")
+        if vartype and desc.parameters[name].vartype.name != vartype:
+            raise spec.error(param_key, f"parameter {name!r} is a {desc.parameters[name].vartype.name}; "
+                             f"expected a {vartype}")
+
+    def require_columns(self, spec: Spec, stream_key: str, columns: tuple[str, ...]) -> None:
+        have = self.stream_columns[spec[stream_key]]
+        missing = [c for c in columns if c not in have]
+        if missing:
+            raise spec.error(stream_key, f"stream {spec[stream_key]!r} lacks column(s) "
+                             f"{', '.join(missing)}; it has {', '.join(have)}")
+
+
+class FactorType(Component):
+    """Turns one config entry into factors: `build()` calls `ctx.add(...)` per factor.
+
+    `example()` returns a `fusionkit.testing.FactorExample` (a factor at a consistent state)
+    for the contract suite; every factor type must provide one.
+    """
+
+    @abstractmethod
+    def build(self, ctx: "BuildContext", spec: Spec) -> None:
+        """Add this entry's factors to the graph through `ctx`."""
+
+    @classmethod
+    @abstractmethod
+    def example(cls, rng: "np.random.Generator"):
+        """A factor of this type with values at which its residual is zero."""
+
+
+@dataclass
+class SourceOutput:
+    """Streams a source produced, plus truth when it knows it (simulators)."""
+
+    streams: dict[str, "Stream"]
+    truth_trajectories: dict[str, "Stream"] | None = None
+    truth_calibration: dict[str, dict[str, Any]] | None = None
+
+
+class Source(Component):
+    """Reads (or generates) named streams. `stream_names()` is known before reading data."""
+
+    @abstractmethod
+    def stream_names(self, spec: Spec, base_dir: "Any") -> dict[str, tuple[str, ...]]:
+        """Stream name -> column names, reading no more than headers (for validation)."""
+
+    @abstractmethod
+    def read(self, spec: Spec, base_dir: "Any") -> SourceOutput:
+        """Read (or generate) the streams."""
+
+
+class RobotModel(Component):
+    """Validates the model-specific keys of a robot description (`schema` covers them)."""
+
+
+class Initializer(Component):
+    """Fills initial values (`ctx.set_initial`) after all factors are built."""
+
+    @abstractmethod
+    def initialize(self, ctx: "BuildContext", spec: Spec) -> None:
+        """Set initial values of the variables this initializer is responsible for."""
+
+
+class Simulator(Component):
+    """Generates a synthetic dataset with its truth. `schema` covers its parameters and
+    `defaults` gives the value of every optional one."""
+
+    defaults: ClassVar[dict] = {}
+
+    @abstractmethod
+    def stream_columns(self, params: dict) -> dict[str, tuple[str, ...]]:
+        """Stream name -> column names that `simulate()` will produce."""
+
+    @abstractmethod
+    def simulate(self, params: dict, rng: "np.random.Generator") -> SourceOutput:
+        """Streams and truth for `params` (already validated and defaulted)."""
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        """Robot descriptions (as YAML-able dicts) the dataset belongs to, by robot name."""
+        return {}
+
+    def config(self, params: dict) -> dict:
+        """A runnable config (without sources) that estimates this dataset."""
+        return {}

@@ -1,0 +1,1 @@
+"""Run-config loading and validation (`fusionkit.config.loader.load_config`)."""

@@ -1,0 +1,162 @@
+"""Load a run config and validate all of it (types, plugins, robots, files, names) before work."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable
+
+from ..components import CheckScope, Spec
+from ..robots.calibration_file import apply_calibration, calibration_entries
+from ..robots.description import RobotDescription, load_description
+from .overrides import apply_override
+from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, validate_against
+from .yamlio import Document, load_yaml
+
+COMMON_ENTRY_KEYS = {"type", "label"}
+
+
+@dataclass
+class RobotSetup:
+    """A robot of the run: its (possibly overridden) description and how its states are clocked."""
+
+    name: str
+    description: RobotDescription
+    states: dict[str, Any] | None
+
+
+@dataclass
+class RunConfig:
+    doc: Document
+    base_dir: Path
+    name: str
+    seed: int
+    robots: dict[str, RobotSetup]
+    sources: list[Spec]
+    factors: list[Spec]
+    initializers: list[Spec]
+    solver: dict[str, Any]
+    truth: dict[str, Any]
+    output: dict[str, Any]
+    stream_columns: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    stream_source: dict[str, int] = field(default_factory=dict)
+
+    def resolve(self, path: str) -> Path:
+        p = Path(path)
+        return p if p.is_absolute() else self.base_dir / p
+
+
+def _entry_schema(cls: type, extra_keys: dict) -> dict:
+    schema = dict(cls.schema)
+    props = {"type": {"type": "string"}, "label": {"type": "string"}, **extra_keys,
+             **schema.get("properties", {})}
+    schema["properties"] = props
+    return schema
+
+
+def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys: dict) -> list:
+    """Each entry's type must be installed and its keys must fit the type's schema."""
+    instances = []
+    for spec in specs:
+        cls = reg.get(kind, spec.type)
+        if cls is None:
+            raise spec.error("type", f"unknown {kind[:-1].replace('_', ' ')} {spec.type!r}; installed: "
+                             f"{', '.join(reg.names(kind)) or '(none)'} (see `fusionkit plugins`)")
+        validate_against(doc, _entry_schema(cls, extra_keys), spec.data, spec.path)
+        instances.append(cls())
+    return instances
+
+
+def _check_references(specs: list[Spec], instances: list, robots: dict, streams: dict) -> None:
+    for spec, inst in zip(specs, instances):
+        for key in inst.robot_fields:
+            if key in spec.data and spec[key] not in robots:
+                raise spec.error(key, f"unknown robot {spec[key]!r}; the config defines: {', '.join(robots)}")
+        for key in inst.stream_fields:
+            if key in spec.data and spec[key] not in streams:
+                raise spec.error(key, f"unknown stream {spec[key]!r}; the sources provide: "
+                                 f"{', '.join(sorted(streams)) or '(none)'}")
+
+
+def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
+    robots = {}
+    for name, raw in doc.data["robots"].items():
+        path = ("robots", name)
+        desc = load_description(raw["description"], base, doc, path + ("description",))
+        model = reg.get("robot_models", desc.model)
+        if model is None:
+            raise desc.error(("model",), f"unknown robot model {desc.model!r}; installed: "
+                             f"{', '.join(reg.names('robot_models'))}")
+        model_schema = dict(model.schema)
+        model_schema["properties"] = dict(model.schema.get("properties", {}))
+        validate_against(desc.doc, model_schema, desc.extra)
+        if "overrides" in raw:
+            file = base / raw["overrides"]
+            if not file.is_file():
+                raise doc.error(path + ("overrides",), f"calibration file not found: {file}")
+            cal = load_yaml(file)
+            entries = calibration_entries(cal)
+            apply_calibration(desc, entries.get(name, {}), cal, name)
+        robots[name] = RobotSetup(name, desc, raw.get("states"))
+    return robots
+
+
+def specs_of(doc: Document, section: str) -> list[Spec]:
+    return [Spec(d, doc, (section, i)) for i, d in enumerate(doc.data.get(section) or [])]
+
+
+def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
+    """Load, override and validate a run config; raises ConfigError/DataError on the first problem."""
+    from ..plugins import registry
+
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "expected a mapping at the top level (robots:, sources:, factors:, ...)")
+    for assignment in overrides:
+        apply_override(doc.data, assignment)
+    validate_against(doc, CONFIG_SCHEMA, doc.data)
+    reg = registry()
+    base = Path(path).resolve().parent
+    robots = _load_robots(doc, base, reg)
+
+    sources = specs_of(doc, "sources")
+    source_objs = _check_entries(doc, sources, "sources", reg, {})
+    scope = CheckScope({n: r.description for n, r in robots.items()}, {})
+    streams: dict[str, tuple[str, ...]] = {}
+    stream_source: dict[str, int] = {}
+    for i, (spec, src) in enumerate(zip(sources, source_objs)):
+        src.check(spec, scope)
+        for sname, cols in src.stream_names(spec, base).items():
+            if sname in streams:
+                raise spec.error(None, f"stream {sname!r} is already provided by sources[{stream_source[sname]}]")
+            streams[sname], stream_source[sname] = cols, i
+    scope.stream_columns = streams
+
+    for name, setup in robots.items():
+        if setup.states and setup.states["stream"] not in streams:
+            raise doc.error(("robots", name, "states", "stream"),
+                            f"unknown stream {setup.states['stream']!r}; the sources provide: "
+                            f"{', '.join(sorted(streams)) or '(none)'}")
+
+    factors = specs_of(doc, "factors")
+    factor_objs = _check_entries(doc, factors, "factor_types", reg, {"robust": ROBUST_SCHEMA})
+    initializers = specs_of(doc, "initializers")
+    init_objs = _check_entries(doc, initializers, "initializers", reg, {})
+    for specs, objs in ((factors, factor_objs), (initializers, init_objs)):
+        _check_references(specs, objs, robots, streams)
+        for spec, obj in zip(specs, objs):
+            obj.check(spec, scope)
+
+    truth = dict(doc.data.get("truth") or {})
+    for robot, file in (truth.get("trajectories") or {}).items():
+        if robot not in robots:
+            raise doc.error(("truth", "trajectories", robot), f"unknown robot {robot!r}; the config defines: "
+                            f"{', '.join(robots)}")
+        if not (base / file).is_file():
+            raise doc.error(("truth", "trajectories", robot), f"file not found: {base / file}")
+    if "calibration" in truth and not (base / truth["calibration"]).is_file():
+        raise doc.error(("truth", "calibration"), f"file not found: {base / truth['calibration']}")
+
+    return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
+                     robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,
+                     dict(doc.data.get("output") or {}), streams, stream_source)

@@ -1,0 +1,53 @@
+"""`--set key.path=value` overrides applied to a loaded config before validation."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+from ..errors import ConfigError
+
+
+def parse_key_path(text: str) -> tuple:
+    """'factors.1.params.sigma' or 'factors[1].params.sigma' -> ('factors', 1, 'params', 'sigma')."""
+    parts: list = []
+    for raw in text.replace("[", ".").replace("]", "").split("."):
+        if raw == "":
+            raise ConfigError(f"--set {text!r}: empty key in path (expected e.g. solver.type=isam2)")
+        parts.append(int(raw) if raw.isdigit() else raw)
+    return tuple(parts)
+
+
+def apply_override(data: dict, assignment: str) -> None:
+    """Apply one `key.path=value`; the value is parsed as a YAML scalar/flow value (safe)."""
+    if "=" not in assignment:
+        raise ConfigError(f"--set {assignment!r}: expected key.path=value")
+    key, _, raw = assignment.partition("=")
+    path = parse_key_path(key.strip())
+    try:
+        value: Any = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError:
+        raise ConfigError(f"--set {assignment!r}: value is not valid YAML") from None
+    node: Any = data
+    for i, part in enumerate(path[:-1]):
+        nxt = path[i + 1]
+        if isinstance(node, list):
+            if not isinstance(part, int) or part >= len(node):
+                raise ConfigError(f"--set {key}: index {part} out of range (list has {len(node)} items)")
+            node = node[part]
+            continue
+        if not isinstance(node, dict):
+            raise ConfigError(f"--set {key}: {part!r} is not inside a mapping")
+        if part not in node or node[part] is None:
+            node[part] = [] if isinstance(nxt, int) else {}
+        node = node[part]
+    last = path[-1]
+    if isinstance(node, list):
+        if not isinstance(last, int) or last >= len(node):
+            raise ConfigError(f"--set {key}: index {last} out of range (list has {len(node)} items)")
+        node[last] = value
+    elif isinstance(node, dict):
+        node[last] = value
+    else:
+        raise ConfigError(f"--set {key}: parent is not a mapping or list")

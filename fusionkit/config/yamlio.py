@@ -1,0 +1,86 @@
+"""Safe YAML loading that remembers the line of every key, for one-line error messages."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import ConfigError
+
+
+def format_path(path: tuple) -> str:
+    """('factors', 1, 'params', 'sigma') -> 'factors[1].params.sigma'."""
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+@dataclass
+class Document:
+    """A parsed YAML file: its data, its path, and the 1-based line of each key path."""
+
+    data: Any
+    file: Path
+    lines: dict[tuple, int] = field(default_factory=dict)
+
+    def line_of(self, path: tuple) -> int | None:
+        """Line of `path`, or of its closest ancestor that has one."""
+        path = tuple(path)
+        while path:
+            if path in self.lines:
+                return self.lines[path]
+            path = path[:-1]
+        return self.lines.get((), None)
+
+    def error(self, path: tuple, message: str) -> ConfigError:
+        return ConfigError(message, file=str(self.file), line=self.line_of(path),
+                           path=format_path(path) or None)
+
+
+def _record_lines(node: yaml.Node, path: tuple, lines: dict) -> None:
+    lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            key = key_node.value
+            lines[path + (key,)] = key_node.start_mark.line + 1
+            _record_lines(value_node, path + (key,), lines)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _record_lines(item, path + (i,), lines)
+
+
+def load_yaml(file: str | Path) -> Document:
+    """Read a YAML file safely; raise ConfigError naming the file and line on any problem."""
+    file = Path(file)
+    try:
+        text = file.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", file=str(file)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read file ({exc.__class__.__name__}: {exc})", file=str(file)) from None
+    return parse_yaml(text, file)
+
+
+def parse_yaml(text: str, file: str | Path = "<string>") -> Document:
+    """Parse YAML text with SafeLoader, keeping key line numbers."""
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        line = mark.line + 1 if mark else None
+        raise ConfigError(f"YAML syntax error: {exc.problem or exc.context}",
+                          file=str(file), line=line) from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"YAML error: {exc}", file=str(file)) from None
+    lines: dict[tuple, int] = {}
+    if node is not None:
+        _record_lines(node, (), lines)
+    return Document(data={} if data is None else data, file=Path(file), lines=lines)

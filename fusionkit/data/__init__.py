@@ -1,0 +1,1 @@
+"""Streams, file formats, sources and time association."""

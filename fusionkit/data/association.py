@@ -1,0 +1,64 @@
+"""Associate stream samples with states: nearest stamp within a tolerance, or pose interpolation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+
+@dataclass
+class Association:
+    """`state[i]` is paired with stream row `row[i]`; `unmatched` rows had no state near enough."""
+
+    state: np.ndarray
+    row: np.ndarray
+    unmatched: int
+
+
+def nearest(state_t: np.ndarray, sample_t: np.ndarray, tolerance: float) -> Association:
+    """Pair each state with the closest sample within `tolerance` seconds (at most one each way)."""
+    idx = np.clip(np.searchsorted(state_t, sample_t), 1, len(state_t) - 1) if len(state_t) > 1 else \
+        np.zeros(len(sample_t), dtype=int)
+    if len(state_t) > 1:
+        left = idx - 1
+        pick_left = np.abs(sample_t - state_t[left]) <= np.abs(state_t[idx] - sample_t)
+        idx = np.where(pick_left, left, idx)
+    dt = np.abs(state_t[idx] - sample_t)
+    ok = dt <= tolerance
+    rows = np.flatnonzero(ok)
+    states = idx[ok]
+    # keep only the closest sample for each state
+    order = np.lexsort((dt[rows], states))
+    rows, states = rows[order], states[order]
+    first = np.ones(len(states), dtype=bool)
+    first[1:] = states[1:] != states[:-1]
+    rows, states = rows[first], states[first]
+    return Association(states, rows, int(len(sample_t) - len(rows)))
+
+
+def interpolate_poses(sample_t: np.ndarray, poses: np.ndarray, query_t: np.ndarray,
+                      max_gap: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (N, 7: x y z qx qy qz qw) at `query_t`: linear position, slerp rotation.
+
+    Returns (mask of queries inside the sample span and not across a gap > max_gap, (M, 7) poses).
+    """
+    inside = (query_t >= sample_t[0]) & (query_t <= sample_t[-1])
+    q = query_t[inside]
+    out = np.empty((len(q), 7))
+    if len(sample_t) == 1:
+        out[:] = poses[0]
+        return inside, out
+    for axis in range(3):
+        out[:, axis] = np.interp(q, sample_t, poses[:, axis])
+    out[:, 3:] = Slerp(sample_t, Rotation.from_quat(poses[:, 3:]))(q).as_quat()
+    if max_gap is not None:
+        hi = np.clip(np.searchsorted(sample_t, q), 1, len(sample_t) - 1)
+        gap = sample_t[hi] - sample_t[hi - 1]
+        ok = gap <= max_gap
+        full = np.flatnonzero(inside)
+        inside = inside.copy()
+        inside[full[~ok]] = False
+        out = out[ok]
+    return inside, out

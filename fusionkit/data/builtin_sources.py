@@ -1,0 +1,126 @@
+"""Built-in sources: stream CSV, TUM trajectories, ROS 1/2 bags, and in-process simulation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import hookimpl
+from ..components import SourceOutput, Source, Spec
+from ..errors import DataError
+from .files import read_csv_stream, read_tum
+from .stream import POSE_COLUMNS
+
+NAME = {"type": "string", "pattern": "^[A-Za-z_][A-Za-z0-9_./-]*$"}
+
+
+def resolve(base_dir: Path, path: str) -> Path:
+    p = Path(path)
+    return p if p.is_absolute() else base_dir / p
+
+
+def _csv_header(path: Path) -> tuple[str, ...]:
+    try:
+        with path.open(encoding="utf-8") as f:
+            for line in f:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    return tuple(h.strip() for h in line.strip().split(",")[1:])
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+    return ()
+
+
+class CsvSource(Source):
+    name = "csv"
+    summary = "stream CSV: header row, first column t (s), then named numeric columns"
+    schema = {"type": "object", "properties": {"name": NAME, "path": {"type": "string"},
+                                               "columns": {"type": "array", "items": {"type": "string"}}},
+              "required": ["name", "path"], "additionalProperties": False}
+
+    def stream_names(self, spec: Spec, base_dir: Path):
+        path = resolve(base_dir, spec["path"])
+        if not path.is_file():
+            raise spec.error("path", f"file not found: {path}")
+        return {spec["name"]: tuple(spec.get("columns") or _csv_header(path))}
+
+    def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
+        stream = read_csv_stream(resolve(base_dir, spec["path"]), spec["name"], tuple(spec.get("columns", ())))
+        return SourceOutput({stream.name: stream})
+
+
+class TumSource(Source):
+    name = "tum"
+    summary = "TUM trajectory: t x y z qx qy qz qw per line (poses)"
+    schema = {"type": "object", "properties": {"name": NAME, "path": {"type": "string"}},
+              "required": ["name", "path"], "additionalProperties": False}
+
+    def stream_names(self, spec: Spec, base_dir: Path):
+        path = resolve(base_dir, spec["path"])
+        if not path.is_file():
+            raise spec.error("path", f"file not found: {path}")
+        return {spec["name"]: POSE_COLUMNS}
+
+    def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
+        stream = read_tum(resolve(base_dir, spec["path"]), spec["name"])
+        return SourceOutput({stream.name: stream})
+
+
+class RosbagSource(Source):
+    name = "rosbag"
+    summary = "ROS 1 (.bag) or ROS 2 bag: PoseStamped, Odometry, Imu, JointState topics -> streams"
+    schema = {"type": "object",
+              "properties": {"path": {"type": "string"},
+                             "topics": {"type": "object", "minProperties": 1, "additionalProperties": NAME}},
+              "required": ["path", "topics"], "additionalProperties": False}
+
+    def stream_names(self, spec: Spec, base_dir: Path):
+        from .rosbag_reader import topic_columns
+        path = resolve(base_dir, spec["path"])
+        if not path.exists():
+            raise spec.error("path", f"bag not found: {path}")
+        columns = topic_columns(path, list(spec["topics"]))
+        return {spec["topics"][topic]: cols for topic, cols in columns.items()}
+
+    def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
+        from .rosbag_reader import read_bag
+        return SourceOutput(read_bag(resolve(base_dir, spec["path"]), dict(spec["topics"])))
+
+
+class SimulateSource(Source):
+    """Runs a registered simulator in-process: data the package makes itself, with its truth."""
+
+    name = "simulate"
+    summary = "in-process synthetic data from a registered simulator (streams + truth)"
+    schema = {"type": "object",
+              "properties": {"scenario": {"type": "string"}, "seed": {"type": "integer"},
+                             "params": {"type": "object"}},
+              "required": ["scenario"], "additionalProperties": False}
+
+    def _simulator(self, spec: Spec):
+        from ..plugins import registry
+        from ..config.schema import validate_against
+        reg = registry()
+        cls = reg.get("simulators", spec["scenario"])
+        if cls is None:
+            raise spec.error("scenario", f"unknown scenario {spec['scenario']!r}; installed: "
+                             f"{', '.join(reg.names('simulators')) or '(none)'}")
+        params = dict(spec.get("params") or {})
+        validate_against(spec.doc, cls.schema, params, spec.path + ("params",))
+        return cls(), {**cls.defaults, **params}
+
+    def check(self, spec: Spec, scope) -> None:
+        self._simulator(spec)
+
+    def stream_names(self, spec: Spec, base_dir: Path):
+        sim, params = self._simulator(spec)
+        return sim.stream_columns(params)
+
+    def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
+        sim, params = self._simulator(spec)
+        return sim.simulate(params, np.random.default_rng(spec.get("seed", 0)))
+
+
+@hookimpl
+def register_sources():
+    return [CsvSource, TumSource, RosbagSource, SimulateSource]

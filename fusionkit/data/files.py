@@ -1,0 +1,88 @@
+"""Readers and writers for the documented file formats: stream CSV and TUM trajectories."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from .stream import POSE_COLUMNS, Stream, check_samples
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+
+
+def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
+    """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
+    text = _read_text(path)
+    rows = list(csv.reader(io.StringIO(text)))
+    rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise DataError(f"{path}: empty file; expected a header row starting with 't'")
+    header = [h.strip() for h in rows[0]]
+    if header[0] != "t":
+        raise DataError(f"{path}:1: first column is {header[0]!r}; expected 't' (time in seconds), "
+                        f"header was {','.join(header)}")
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise DataError(f"{path}:1: missing column(s) {', '.join(missing)}; header has "
+                        f"{','.join(header)}, expected at least t,{','.join(required)}")
+    width = len(header)
+    data = np.empty((len(rows) - 1, width))
+    for i, row in enumerate(rows[1:], start=2):
+        if len(row) != width:
+            raise DataError(f"{path}:{i}: row has {len(row)} columns; header has {width}")
+        try:
+            data[i - 2] = [float(c) for c in row]
+        except ValueError:
+            raise DataError(f"{path}:{i}: non-numeric value in row {row!r}; expected numbers") from None
+    check_samples(data[:, 0], data[:, 1:], str(path), first_line=2)
+    return Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
+
+
+def write_csv_stream(path: Path, stream: Stream) -> None:
+    header = "t," + ",".join(stream.columns)
+    np.savetxt(path, np.column_stack([stream.t, stream.values]), delimiter=",", header=header,
+               comments="", fmt="%.9g")
+
+
+def read_tum(path: Path, name: str) -> Stream:
+    """TUM trajectory: `t x y z qx qy qz qw` per line, space separated, `#` comments."""
+    text = _read_text(path)
+    rows, lines = [], []
+    for n, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split()
+        if len(parts) != 8:
+            raise DataError(f"{path}:{n}: {len(parts)} fields; expected 8 (t x y z qx qy qz qw)")
+        try:
+            rows.append([float(p) for p in parts])
+        except ValueError:
+            raise DataError(f"{path}:{n}: non-numeric field; expected t x y z qx qy qz qw") from None
+        lines.append(n)
+    if not rows:
+        raise DataError(f"{path}: no poses; expected lines 't x y z qx qy qz qw'")
+    a = np.asarray(rows)
+    norms = np.linalg.norm(a[:, 4:], axis=1)
+    if np.any(norms < 1e-9):
+        bad = int(np.argmax(norms < 1e-9))
+        raise DataError(f"{path}:{lines[bad]}: zero quaternion; expected a unit quaternion qx qy qz qw")
+    check_samples(a[:, 0], a[:, 1:], str(path), first_line=lines[0])
+    a[:, 4:] /= norms[:, None]
+    return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path))
+
+
+def write_tum(path: Path, stream: Stream) -> None:
+    a = np.column_stack([stream.t, stream.pose_array()])
+    np.savetxt(path, a, fmt="%.9f", header="t x y z qx qy qz qw")

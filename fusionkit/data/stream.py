@@ -1,0 +1,92 @@
+"""Streams: timestamped tables (seconds, SI units) that sources produce and factors consume."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from ..errors import DataError
+
+POSE_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw")
+PLANAR_POSE_COLUMNS = ("x", "y", "theta")
+
+
+@dataclass
+class Stream:
+    """N samples: times `t` (s, strictly increasing) and `values` (N x len(columns))."""
+
+    name: str
+    t: np.ndarray
+    columns: tuple[str, ...]
+    values: np.ndarray
+    origin: str = ""
+
+    def __post_init__(self) -> None:
+        self.t = np.asarray(self.t, dtype=float).reshape(-1)
+        self.values = np.asarray(self.values, dtype=float).reshape(len(self.t), len(self.columns))
+        self.columns = tuple(self.columns)
+        check_samples(self.t, self.values, self.origin or self.name)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.values[:, self.columns.index(name)]
+
+    def has(self, *names: str) -> bool:
+        return all(n in self.columns for n in names)
+
+    @property
+    def is_pose(self) -> bool:
+        return self.has(*POSE_COLUMNS)
+
+    def pose_array(self) -> np.ndarray:
+        """(N, 7) array x y z qx qy qz qw, quaternions normalized."""
+        a = np.stack([self.column(c) for c in POSE_COLUMNS], axis=1)
+        a[:, 3:] /= np.linalg.norm(a[:, 3:], axis=1, keepdims=True)
+        return a
+
+    def poses(self) -> list[gtsam.Pose3]:
+        return poses_from_array(self.pose_array())
+
+    def subset(self, rows: np.ndarray) -> "Stream":
+        return Stream(self.name, self.t[rows], self.columns, self.values[rows], self.origin)
+
+
+def poses_from_array(a: np.ndarray) -> list[gtsam.Pose3]:
+    """(N, 7) x y z qx qy qz qw -> Pose3 list."""
+    return [gtsam.Pose3(gtsam.Rot3.Quaternion(r[6], r[3], r[4], r[5]), r[:3]) for r in a]
+
+
+def pose_array_from(poses: list[gtsam.Pose3]) -> np.ndarray:
+    """Pose3 list -> (N, 7) x y z qx qy qz qw."""
+    out = np.empty((len(poses), 7))
+    for i, p in enumerate(poses):
+        q = p.rotation().toQuaternion()
+        out[i, :3] = p.translation()
+        out[i, 3:] = (q.x(), q.y(), q.z(), q.w())
+    return out
+
+
+def pose_stream(name: str, t: np.ndarray, poses: list[gtsam.Pose3] | np.ndarray, origin: str = "") -> Stream:
+    arr = poses if isinstance(poses, np.ndarray) else pose_array_from(poses)
+    return Stream(name, t, POSE_COLUMNS, arr, origin)
+
+
+def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: int = 1) -> None:
+    """Reject NaN/inf and non-increasing timestamps, saying how many rows and the first line."""
+    if len(t) == 0:
+        raise DataError(f"{origin}: no samples (expected at least one data row)")
+    bad = ~np.isfinite(t) | ~np.all(np.isfinite(values), axis=1)
+    if bad.any():
+        first = int(np.argmax(bad))
+        raise DataError(f"{origin}:{first + first_line}: {int(bad.sum())} row(s) contain NaN or "
+                        f"infinite values (first at line {first + first_line}); expected finite numbers")
+    back = np.diff(t) <= 0
+    if back.any():
+        first = int(np.argmax(back)) + 1
+        raise DataError(f"{origin}:{first + first_line}: {int(back.sum())} row(s) have timestamps that do "
+                        f"not increase (first at line {first + first_line}); expected strictly "
+                        "increasing t in seconds")

@@ -1,0 +1,1 @@
+"""Evaluation against truth: trajectory errors, parameter errors, consistency."""

@@ -1,0 +1,1 @@
+"""Variables, keys and the graph builder."""

@@ -1,0 +1,188 @@
+"""Graph builder: the context factor and initializer plugins use to declare variables and factors."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import gtsam
+import numpy as np
+
+from ..components import Spec
+from ..config.loader import RunConfig
+from ..data.association import Association, nearest
+from ..data.stream import Stream
+from ..robots.description import Parameter, RobotDescription
+from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
+from .noise import gaussian, with_kernel
+from .variables import POSE2, POSE3, VarType
+
+STATIC_TIME = float("-inf")
+
+
+@dataclass
+class StateSet:
+    """The states of one robot: times (s) from its clock stream and the pose family."""
+
+    robot: str
+    t: np.ndarray
+    family: Family
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def key(self, k: int) -> int:
+        return self.family.key(k)
+
+
+@dataclass
+class FactorRecord:
+    """A factor with the entry that made it and the time at which an incremental solver adds it."""
+
+    factor: gtsam.NonlinearFactor
+    label: str
+    time: float
+
+
+@dataclass
+class Problem:
+    """Everything the solver needs, plus what reports need to name things."""
+
+    records: list[FactorRecord]
+    initial: gtsam.Values
+    keys: KeyRegistry
+    states: dict[str, StateSet]
+    key_time: dict[int, float]
+    notes: list[str] = field(default_factory=list)
+
+    def graph(self) -> gtsam.NonlinearFactorGraph:
+        g = gtsam.NonlinearFactorGraph()
+        for r in self.records:
+            g.add(r.factor)
+        return g
+
+
+class BuildContext:
+    """Passed to `FactorType.build` and `Initializer.initialize`."""
+
+    def __init__(self, config: RunConfig, streams: dict[str, Stream]):
+        self.config = config
+        self.streams = streams
+        self.keys = KeyRegistry()
+        self.records: list[FactorRecord] = []
+        self.initial = gtsam.Values()
+        self.key_time: dict[int, float] = {}
+        self.notes: list[str] = []
+        self.states: dict[str, StateSet] = {}
+        for name, setup in config.robots.items():
+            if setup.states:
+                clock = streams[setup.states["stream"]]
+                t = clock.t[:: setup.states.get("every", 1)]
+                vt = POSE2 if setup.states.get("type") == "pose2" else POSE3
+                self.states[name] = StateSet(name, t, self.keys.family(name, "pose", vt, STATE))
+
+    # --- robots, streams, states -------------------------------------------------------------
+    def robot(self, name: str) -> RobotDescription:
+        return self.config.robots[name].description
+
+    def stream(self, name: str) -> Stream:
+        return self.streams[name]
+
+    def state_set(self, robot: str, spec: Spec | None = None) -> StateSet:
+        if robot not in self.states:
+            msg = f"robot {robot!r} has no states; add `states: {{stream: ...}}` to robots.{robot}"
+            raise (spec.error("robot", msg) if spec else ValueError(msg))
+        return self.states[robot]
+
+    def state_time(self, robot: str, k: int) -> float:
+        return float(self.states[robot].t[k])
+
+    # --- variables ---------------------------------------------------------------------------
+    def _declare(self, key: int, initial: Any, time: float) -> int:
+        if not self.initial.exists(key):
+            self.initial.insert(key, initial)
+            self.key_time[key] = time
+        return key
+
+    def state_variable(self, robot: str, family: str, vartype: VarType, k: int, initial: Any = None) -> int:
+        """A per-state variable of another family (velocity, bias, joints) at state k."""
+        fam = self.keys.family(robot, family, vartype, STATE)
+        return self._declare(fam.key(k), vartype.zero() if initial is None else initial,
+                             self.state_time(robot, k))
+
+    def pose_key(self, robot: str, k: int) -> int:
+        """The pose of robot `robot` at state k (declared with identity until initialized)."""
+        s = self.states[robot]
+        return self._declare(s.key(k), s.family.vartype.zero(), float(s.t[k]))
+
+    def parameter(self, robot: str, name: str, index: int | None = None, k: int | None = None) -> int:
+        """Key of a calibration parameter from the robot description (element `index`).
+
+        Static parameters are one variable; time-varying ones are one per state `k`, chained by
+        a `parameter.random_walk` factor. The description's prior is added once (time-varying:
+        on the first state only).
+        """
+        param = self.robot(robot).parameters[name]
+        i = 0 if index is None else index
+        if param.time_varying:
+            if k is None:
+                raise ValueError(f"{robot}/{name} is time-varying: pass the state index k")
+            fam = self.keys.family(robot, name if not param.indexed else f"{name}[{i}]",
+                                   param.vartype, TIME_VARYING)
+            key = fam.key(k)
+            new = not self.initial.exists(key)
+            self._declare(key, param.values[i], self.state_time(robot, k))
+            if new and k == 0:
+                self._prior(param, i, key, f"prior:{robot}/{name}", self.state_time(robot, 0))
+            return key
+        fam = self.keys.family(robot, name, param.vartype, STATIC, indexed=param.indexed)
+        key = fam.key(i)
+        if not self.initial.exists(key):
+            self._declare(key, param.values[i], STATIC_TIME)
+            self._prior(param, i, key, f"prior:{robot}/{name}", STATIC_TIME)
+        return key
+
+    def static_variable(self, robot: str, name: str, vartype: VarType, initial: Any,
+                        prior_sigma: Any = None) -> int:
+        """A static unknown that no description names (e.g. a base-to-base transform)."""
+        key = self.keys.family(robot, name, vartype, STATIC, indexed=False).key(0)
+        if not self.initial.exists(key):
+            self._declare(key, initial, STATIC_TIME)
+            if prior_sigma is not None:
+                self.add_record(vartype.prior(key, initial, gaussian(prior_sigma)),
+                                f"prior:{robot}/{name}", STATIC_TIME)
+        return key
+
+    def _prior(self, param: Parameter, i: int, key: int, label: str, time: float) -> None:
+        if param.sigma is not None:
+            self.add_record(param.vartype.prior(key, param.values[i], gaussian(param.sigma[i])), label, time)
+
+    def set_initial(self, key: int, value: Any) -> None:
+        if self.initial.exists(key):
+            self.initial.update(key, value)
+        else:
+            raise KeyError(f"{self.keys.name_of(key)} is not a variable of the graph")
+
+    # --- factors -----------------------------------------------------------------------------
+    def noise(self, sigmas, spec: Spec | None = None) -> gtsam.noiseModel.Base:
+        """Gaussian noise with the robust kernel of the entry (`robust:`), if any."""
+        return with_kernel(gaussian(sigmas), spec.get("robust") if spec else None)
+
+    def add(self, factor: gtsam.NonlinearFactor, spec: Spec, time: float = STATIC_TIME) -> None:
+        """Add a factor made by entry `spec`; `time` is when an incremental solver may add it
+        (the latest state it touches; static-only factors go first)."""
+        self.add_record(factor, spec.label, time)
+
+    def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
+        self.records.append(FactorRecord(factor, label, time))
+
+    def associate(self, stream: Stream, robot: str, tolerance: float, spec: Spec) -> Association:
+        """Nearest-stamp association of `stream` rows with the robot's states; counts what is left."""
+        a = nearest(self.state_set(robot, spec).t, stream.t, tolerance)
+        if a.unmatched:
+            self.notes.append(f"{spec.label}: {a.unmatched} of {len(stream)} samples of stream "
+                              f"{stream.name!r} had no state within {tolerance} s and were not used")
+        return a
+
+    def problem(self) -> Problem:
+        return Problem(self.records, self.initial, self.keys, self.states, self.key_time, self.notes)

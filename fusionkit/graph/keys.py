@@ -1,0 +1,72 @@
+"""Namespaced variable keys with a reverse map, so reports print `cam/pose[12]`, not integers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .variables import VarType
+
+INDEX_BITS = 40
+STATE, STATIC, TIME_VARYING = "state", "static", "time_varying"
+
+
+@dataclass(frozen=True)
+class Family:
+    """A family of variables of one robot: per-state, static, or time-varying (one per state)."""
+
+    id: int
+    robot: str
+    name: str
+    vartype: VarType
+    kind: str
+    indexed: bool = True
+
+    def key(self, index: int = 0) -> int:
+        return (self.id << INDEX_BITS) | int(index)
+
+    def label(self, index: int | None = None) -> str:
+        base = f"{self.robot}/{self.name}"
+        return base if index is None else f"{base}[{index}]"
+
+
+class KeyRegistry:
+    """Declares families and turns keys back into names."""
+
+    def __init__(self) -> None:
+        self._families: dict[tuple[str, str], Family] = {}
+        self._by_id: dict[int, Family] = {}
+
+    def family(self, robot: str, name: str, vartype: VarType, kind: str,
+               indexed: bool = True) -> Family:
+        """Declare (or fetch) a family; declaring it twice with another type is an error."""
+        found = self._families.get((robot, name))
+        if found is not None:
+            if found.vartype.name != vartype.name or found.kind != kind:
+                raise ValueError(
+                    f"variable {robot}/{name} declared as {found.kind} {found.vartype.name} "
+                    f"and again as {kind} {vartype.name}")
+            return found
+        fam = Family(len(self._families) + 1, robot, name, vartype, kind, indexed)
+        self._families[(robot, name)] = fam
+        self._by_id[fam.id] = fam
+        return fam
+
+    def get(self, robot: str, name: str) -> Family | None:
+        return self._families.get((robot, name))
+
+    def families(self) -> list[Family]:
+        return list(self._families.values())
+
+    def decode(self, key: int) -> tuple[Family, int]:
+        fam = self._by_id.get(int(key) >> INDEX_BITS)
+        if fam is None:
+            raise KeyError(key)
+        return fam, int(key) & ((1 << INDEX_BITS) - 1)
+
+    def name_of(self, key: int) -> str:
+        """`cam/pose[12]` for states and indexed parameters, `cam/vo_scale` for single ones."""
+        try:
+            fam, index = self.decode(key)
+        except KeyError:
+            return f"<unknown key {key}>"
+        return fam.label(index if fam.indexed else None)

@@ -1,0 +1,39 @@
+"""Every hook a fusionkit plugin can implement. All are registration hooks, called once.
+
+A plugin is a module (or object) with functions decorated by `fusionkit.hookimpl`; third-party
+packages expose it through the `fusionkit` entry-point group in their pyproject.toml:
+
+    [project.entry-points.fusionkit]
+    myplugin = "my_package.plugin"
+"""
+
+from __future__ import annotations
+
+import pluggy
+
+hookspec = pluggy.HookspecMarker("fusionkit")
+
+
+@hookspec
+def register_factor_types() -> list[type]:
+    """Return `fusionkit.FactorType` subclasses (sensor models and constraints)."""
+
+
+@hookspec
+def register_sources() -> list[type]:
+    """Return `fusionkit.Source` subclasses (file formats, bag readers, in-process generators)."""
+
+
+@hookspec
+def register_robot_models() -> list[type]:
+    """Return `fusionkit.RobotModel` subclasses (robot types described in YAML)."""
+
+
+@hookspec
+def register_initializers() -> list[type]:
+    """Return `fusionkit.Initializer` subclasses (initial values for the solver)."""
+
+
+@hookspec
+def register_simulators() -> list[type]:
+    """Return `fusionkit.Simulator` subclasses (synthetic datasets with truth)."""

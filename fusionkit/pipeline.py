@@ -1,0 +1,179 @@
+"""The run pipeline: config -> sources -> graph -> initial values -> solve -> estimates -> evaluation."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import gtsam
+import numpy as np
+
+from .components import SourceOutput
+from .config.loader import RunConfig
+from .config.yamlio import load_yaml
+from .data.files import read_tum
+from .data.stream import Stream, pose_array_from, pose_stream
+from .errors import DataError
+from .eval.parameters import parameter_errors
+from .eval.trajectory import position_consistency, trajectory_errors
+from .graph.builder import BuildContext, Problem
+from .graph.keys import STATE, STATIC, TIME_VARYING, Family
+from .plugins import registry
+from .robots.calibration_file import calibration_entries
+from .solve import solve
+from .solve.result import SolveResult
+
+
+@dataclass
+class Truth:
+    trajectories: dict[str, Stream] = field(default_factory=dict)
+    calibration: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+@dataclass
+class ParameterEstimate:
+    """Estimated value(s) of one static or time-varying unknown with 1-sigma per tangent axis."""
+
+    robot: str
+    name: str
+    family: Family
+    values: list[Any]
+    sigma: np.ndarray | None  # (count, dim)
+    series_t: np.ndarray | None = None  # time-varying: state times of each value
+
+
+@dataclass
+class RunResult:
+    config: RunConfig
+    problem: Problem
+    solution: SolveResult
+    trajectories: dict[str, Stream]
+    position_sigma: dict[str, np.ndarray]
+    parameters: dict[str, dict[str, ParameterEstimate]]
+    truth: Truth
+    evaluation: dict[str, Any]
+    timings: dict[str, float]
+
+
+def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
+    """Read every source; gather truth from simulators and from `truth:` files."""
+    reg = registry()
+    streams: dict[str, Stream] = {}
+    truth = Truth()
+    for spec in config.sources:
+        out: SourceOutput = reg.get("sources", spec.type)().read(spec, config.base_dir)
+        streams.update(out.streams)
+        truth.trajectories.update(out.truth_trajectories or {})
+        truth.calibration.update(out.truth_calibration or {})
+    for name, cols in config.stream_columns.items():
+        if name not in streams:
+            raise DataError(f"sources[{config.stream_source[name]}] did not produce stream {name!r}")
+    for robot, file in (config.truth.get("trajectories") or {}).items():
+        truth.trajectories[robot] = read_tum(config.resolve(file), f"truth:{robot}")
+    if "calibration" in config.truth:
+        truth.calibration.update(calibration_entries(load_yaml(config.resolve(config.truth["calibration"]))))
+    return streams, truth
+
+
+def build_problem(config: RunConfig, streams: dict[str, Stream]) -> Problem:
+    """Every factor entry builds its factors, then initializers run in config order."""
+    reg = registry()
+    ctx = BuildContext(config, streams)
+    for spec in config.factors:
+        reg.get("factor_types", spec.type)().build(ctx, spec)
+    for spec in config.initializers:
+        reg.get("initializers", spec.type)().initialize(ctx, spec)
+    return ctx.problem()
+
+
+def _marginal_keys(problem: Problem, with_states: bool) -> set[int]:
+    keys = set()
+    for k in problem.initial.keys():
+        fam = problem.keys.decode(k)[0]
+        if fam.kind != STATE or (with_states and fam.name == "pose"):
+            keys.add(k)
+    return keys
+
+
+def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarray]):
+    trajs, sigmas = {}, {}
+    for robot, states in problem.states.items():
+        vt = states.family.vartype
+        poses, sig = [], []
+        for k in range(len(states)):
+            key = states.key(k)
+            p = vt.read(values, key)
+            if vt.name == "pose2":
+                rot, pos_idx = gtsam.Rot2(p.theta()).matrix(), [0, 1]
+                p = gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0]))
+            else:
+                rot, pos_idx = p.rotation().matrix(), [3, 4, 5]
+            poses.append(p)
+            if key in cov:
+                c = cov[key][np.ix_(pos_idx, pos_idx)]
+                sig.append(np.sqrt(np.diag(rot @ c @ rot.T)))
+        trajs[robot] = pose_stream(robot, states.t, pose_array_from(poses), f"estimate:{robot}")
+        if len(sig) == len(states):
+            sigmas[robot] = np.asarray(sig)
+    return trajs, sigmas
+
+
+def _parameters(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarray]):
+    out: dict[str, dict[str, ParameterEstimate]] = {}
+    by_family: dict[int, list[int]] = {}
+    for k in problem.initial.keys():
+        fam, idx = problem.keys.decode(k)
+        if fam.kind != STATE:
+            by_family.setdefault(fam.id, []).append(k)
+    for keys in by_family.values():
+        fam = problem.keys.decode(keys[0])[0]
+        keys = sorted(keys)
+        vals = [fam.vartype.read(values, k) for k in keys]
+        sig = np.array([np.sqrt(np.diag(cov[k])) for k in keys]) if all(k in cov for k in keys) else None
+        series_t = None
+        if fam.kind == TIME_VARYING:
+            series_t = problem.states[fam.robot].t[[problem.keys.decode(k)[1] for k in keys]]
+        out.setdefault(fam.robot, {})[fam.name] = ParameterEstimate(fam.robot, fam.name, fam, vals, sig, series_t)
+    return out
+
+
+def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth: Truth) -> dict:
+    ev: dict[str, Any] = {}
+    align = config.truth.get("align", "none")
+    for robot, ref in truth.trajectories.items():
+        if robot not in trajectories:
+            continue
+        err = trajectory_errors(trajectories[robot], ref, align)
+        if robot in position_sigma:
+            from .data.association import nearest
+            a = nearest(ref.t, trajectories[robot].t, 0.01)
+            est_pos = trajectories[robot].pose_array()[a.row, :3]
+            true_pos = ref.pose_array()[a.state, :3]
+            err["consistency_percent"] = position_consistency(est_pos, true_pos, position_sigma[robot][a.row])
+        ev.setdefault("trajectories", {})[robot] = err
+    if truth.calibration:
+        ev["parameters"] = parameter_errors(parameters, truth.calibration)
+    return ev
+
+
+def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = None) -> RunResult:
+    """Run everything short of writing files."""
+    timings = {}
+    tic = time.perf_counter()
+    streams, truth = read_sources(config)
+    timings["read_s"] = time.perf_counter() - tic
+    tic = time.perf_counter()
+    problem = build_problem(config, streams)
+    timings["build_s"] = time.perf_counter() - tic
+    tic = time.perf_counter()
+    solution = solve(problem, config.solver, _marginal_keys(problem, with_states=bool(truth.trajectories)),
+                     progress)
+    timings["solve_and_marginals_s"] = time.perf_counter() - tic
+    timings["solve_s"] = solution.seconds
+    trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
+    parameters = _parameters(problem, solution.values, solution.covariances)
+    evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)
+    return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
+                     timings)
+

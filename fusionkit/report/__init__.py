@@ -1,0 +1,1 @@
+"""Outputs of a run: report.json, calibration.yaml, trajectories, plots, the stdout summary."""

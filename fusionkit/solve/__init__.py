@@ -1,0 +1,44 @@
+"""Solvers (batch LM/GN/Dogleg, iSAM2, fixed-lag) and marginal covariances."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import gtsam
+import numpy as np
+
+from ..graph.builder import Problem
+from .batch import solve_batch
+from .checks import check_solution
+from .incremental import solve_fixed_lag, solve_isam2
+from .result import SolveResult
+
+DEFAULT_MAX_COST_RATIO = 10.0
+
+
+def solve(problem: Problem, settings: dict, marginal_keys: set[int],
+          progress: Callable[[int, float], None] | None = None) -> SolveResult:
+    """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`."""
+    kind = settings.get("type", "batch")
+    if kind == "batch":
+        result = solve_batch(problem, settings, progress)
+    elif kind == "isam2":
+        result = solve_isam2(problem, settings, progress)
+    else:
+        result = solve_fixed_lag(problem, settings, progress, marginal_keys)
+    graph = problem.graph()
+    check_solution(problem, graph, result.values, result.initial_error, result.final_error,
+                   settings.get("max_cost_ratio", DEFAULT_MAX_COST_RATIO))
+    if settings.get("marginals", True) and kind != "fixed_lag":
+        result.covariances = marginal_covariances(graph, result, marginal_keys)
+    return result
+
+
+def marginal_covariances(graph: gtsam.NonlinearFactorGraph, result: SolveResult, keys: set[int]) -> dict[int, np.ndarray]:
+    """Marginal covariance (tangent space at the estimate) of each key."""
+    if not keys:
+        return {}
+    marginal = result.marginal
+    if marginal is None:
+        marginal = gtsam.Marginals(graph, result.values).marginalCovariance
+    return {k: np.asarray(marginal(k)) for k in keys}

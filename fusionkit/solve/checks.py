@@ -1,0 +1,70 @@
+"""Checks before and after solving: unconstrained variables, divergence, large residuals."""
+
+from __future__ import annotations
+
+import re
+
+import gtsam
+import numpy as np
+
+from ..errors import SolverError
+from ..graph.builder import Problem
+
+_KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
+
+
+def unconstrained_message(problem: Problem, exc: Exception) -> str | None:
+    """Turn GTSAM's indeterminate-system error into a sentence naming the variable."""
+    m = _KEY_IN_MESSAGE.search(str(exc))
+    if not m:
+        return None
+    name = problem.keys.name_of(int(m.group(1)))
+    return (f"variable {name} is not constrained by the factors (the system is indeterminate near it): "
+            "add a prior or a measurement that fixes it, e.g. a pose.origin or pose.absolute factor for "
+            "the first pose, or a prior sigma for a calibration parameter")
+
+
+def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> None:
+    """Every variable must appear in a factor, and the linearized system must be determinate."""
+    used = set(graph.keyVector())
+    for key in problem.initial.keys():
+        if key not in used:
+            raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor")
+    try:
+        graph.linearize(problem.initial).eliminateMultifrontal()
+    except RuntimeError as exc:
+        msg = unconstrained_message(problem, exc)
+        if msg is None:
+            raise
+        raise SolverError(msg) from None
+
+
+def residual_dimension(graph: gtsam.NonlinearFactorGraph) -> int:
+    return int(sum(graph.at(i).dim() for i in range(graph.size())))
+
+
+def check_solution(problem: Problem, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
+                   initial_error: float, final_error: float, max_cost_ratio: float) -> None:
+    """Fail on divergence (non-finite or growing cost) or a large final residual."""
+    if not np.isfinite(final_error):
+        raise SolverError("the solver diverged: the cost became non-finite; check initial values and sigmas")
+    if final_error > initial_error * (1 + 1e-6) and final_error > 1e-9:
+        raise SolverError(f"the solver diverged: cost rose from {initial_error:.6g} to {final_error:.6g}")
+    dof = residual_dimension(graph) - values.dim()
+    if dof <= 0:
+        return  # as many unknowns as measurements: no redundancy to judge the fit by
+    ratio = 2.0 * final_error / dof
+    if ratio > max_cost_ratio:
+        worst = worst_entries(problem, values)
+        raise SolverError(
+            f"the solver stopped with a large residual: chi-square per degree of freedom {ratio:.3g} (about 1 is "
+            f"expected; the limit is solver.max_cost_ratio={max_cost_ratio:g}); largest contributions: "
+            f"{worst}; check the sigmas, the data association, or the initial values")
+
+
+def worst_entries(problem: Problem, values: gtsam.Values, n: int = 3) -> str:
+    totals: dict[str, float] = {}
+    for r in problem.records:
+        totals[r.label] = totals.get(r.label, 0.0) + r.factor.error(values)
+    top = sorted(totals.items(), key=lambda kv: -kv[1])[:n]
+    return ", ".join(f"{label} ({cost:.3g})" for label, cost in top)

@@ -1,0 +1,131 @@
+"""Incremental solvers: iSAM2 and the fixed-lag smoother. Factors enter in time order (the time
+of the latest state they touch; static-only factors first); the wall time of each update is
+recorded as the per-step latency."""
+
+from __future__ import annotations
+
+import time
+from itertools import groupby
+from typing import Callable, Iterator
+
+import gtsam
+import numpy as np
+
+from ..errors import SolverError
+from ..graph.builder import Problem
+from .checks import check_constrained, unconstrained_message
+from .result import SolveResult
+
+
+def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
+    p = gtsam.ISAM2Params()
+    p.setRelinearizeThreshold(settings.get("relinearize_threshold", 0.01))
+    p.relinearizeSkip = 1
+    return p
+
+
+def value_subset(problem: Problem, keys: list[int], source: gtsam.Values | None = None) -> gtsam.Values:
+    """A Values holding only `keys` (copied from `source`, default the initial values)."""
+    source = problem.initial if source is None else source
+    out = gtsam.Values()
+    for k in keys:
+        out.insert(k, problem.keys.decode(k)[0].vartype.read(source, k))
+    return out
+
+
+def time_steps(problem: Problem) -> Iterator[tuple[float, gtsam.NonlinearFactorGraph, list[int]]]:
+    """(time, factors, keys first seen) per distinct factor time, in time order."""
+    seen: set[int] = set()
+    for t, group in groupby(sorted(problem.records, key=lambda r: r.time), key=lambda r: r.time):
+        graph = gtsam.NonlinearFactorGraph()
+        new = []
+        for r in group:
+            graph.add(r.factor)
+            for k in r.factor.keys():
+                if k not in seen:
+                    seen.add(k)
+                    new.append(k)
+        yield t, graph, new
+
+
+def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
+    msg = unconstrained_message(problem, exc)
+    if msg is None:
+        raise exc
+    raise SolverError(f"{msg} (while adding the measurements at t={t:.3f} s incrementally: "
+                      "static parameters need a prior until the data constrain them)") from None
+
+
+def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
+    graph = problem.graph()
+    check_constrained(problem, graph)
+    isam = gtsam.ISAM2(_isam2_params(settings))
+    latency = []
+    start = time.perf_counter()
+    for i, (t, factors, new) in enumerate(time_steps(problem)):
+        values = value_subset(problem, new)
+        tic = time.perf_counter()
+        try:
+            isam.update(factors, values)
+        except RuntimeError as exc:
+            _raise_unconstrained(problem, exc, t)
+        latency.append(time.perf_counter() - tic)
+        if progress and i % 100 == 0:
+            progress(i, float("nan"))
+    estimate = isam.calculateEstimate()
+    seconds = time.perf_counter() - start
+    return SolveResult(estimate, "isam2", graph.error(problem.initial), graph.error(estimate), len(latency),
+                       seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance)
+
+
+def solve_fixed_lag(problem: Problem, settings: dict,
+                    progress: Callable[[int, float], None] | None = None,
+                    marginal_keys: set[int] | None = None) -> SolveResult:
+    """IncrementalFixedLagSmoother with `lag` seconds. Static variables are re-stamped at every
+    update so they stay in the window; each state keeps the estimate (and covariance, for
+    `marginal_keys`) it had when it left the window."""
+    graph = problem.graph()
+    check_constrained(problem, graph)
+    lag = float(settings.get("lag", 2.0))
+    smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(settings))
+    static = [k for k, t in problem.key_time.items() if t == float("-inf")]
+    in_window: dict[int, float] = {}
+    final: dict[int, object] = {}
+    covariances: dict[int, np.ndarray] = {}
+    latency = []
+    start = time.perf_counter()
+    now = None
+    for i, (t, factors, new) in enumerate(time_steps(problem)):
+        now = t if np.isfinite(t) else (now if now is not None else 0.0)
+        leaving = [k for k, kt in in_window.items() if kt < now - lag]
+        if leaving:
+            est = smoother.calculateEstimate()
+            for k in leaving:
+                final[k] = problem.keys.decode(k)[0].vartype.read(est, k)
+                if marginal_keys and k in marginal_keys:
+                    covariances[k] = smoother.marginalCovariance(k)
+                del in_window[k]
+        stamps = {k: now for k in static}
+        for k in new:
+            kt = problem.key_time[k]
+            stamps[k] = now if kt == float("-inf") else kt
+            if kt != float("-inf"):
+                in_window[k] = kt
+        tic = time.perf_counter()
+        try:
+            smoother.update(factors, value_subset(problem, new), stamps)
+        except RuntimeError as exc:
+            _raise_unconstrained(problem, exc, now)
+        latency.append(time.perf_counter() - tic)
+        if progress and i % 100 == 0:
+            progress(i, float("nan"))
+    est = smoother.calculateEstimate()
+    estimate = gtsam.Values()
+    for k in problem.initial.keys():
+        vt = problem.keys.decode(k)[0].vartype
+        estimate.insert(k, vt.read(est, k) if est.exists(k) else final[k])
+        if marginal_keys and k in marginal_keys and est.exists(k):
+            covariances[k] = smoother.marginalCovariance(k)
+    seconds = time.perf_counter() - start
+    return SolveResult(estimate, "fixed_lag", graph.error(problem.initial), graph.error(estimate), len(latency),
+                       seconds, covariances=covariances, step_latency=np.asarray(latency))

@@ -1,0 +1,326 @@
+"""Generic pose factor types: absolute pose, origin prior, relative pose (odometry), relative pose
+with unknown scale (monocular VO, spec eq. 4.3), co-registration between robots, and the
+random walk that chains a time-varying parameter."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import gtsam
+import numpy as np
+
+from fusionkit import FactorType, Spec
+from fusionkit.data.association import interpolate_poses
+from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
+from fusionkit.graph.noise import gaussian
+from fusionkit.graph.variables import POSE2, POSE3, SCALAR
+from fusionkit.testing import FactorExample
+
+from .residuals import co_registration_residual, scaled_between_residual
+
+SIGMA = {"type": "object",
+         "properties": {"rotation": {"type": "number", "exclusiveMinimum": 0},
+                        "translation": {"type": "number", "exclusiveMinimum": 0}},
+         "required": ["rotation", "translation"], "additionalProperties": False}
+TOLERANCE = {"type": "number", "minimum": 0}
+
+
+def pose_sigmas(spec: Spec, planar: bool) -> np.ndarray:
+    """[rot x3, trans x3] for Pose3 or [x, y, theta] for Pose2 from `sigma: {rotation, translation}`."""
+    s = spec["sigma"]
+    if planar:
+        return np.array([s["translation"], s["translation"], s["rotation"]])
+    return np.array([s["rotation"]] * 3 + [s["translation"]] * 3)
+
+
+def to_pose2(p: gtsam.Pose3) -> gtsam.Pose2:
+    """Project a 3-D pose onto the plane: x, y and yaw."""
+    return gtsam.Pose2(p.x(), p.y(), p.rotation().yaw())
+
+
+def mount_of(ctx, spec: Spec) -> gtsam.Pose3:
+    """body_T_sensor of the entry's `sensor` (identity when the entry names none)."""
+    if "sensor" not in spec.data:
+        return gtsam.Pose3()
+    return ctx.robot(spec["robot"]).sensors[spec["sensor"]].mount
+
+
+def check_sensor(spec: Spec, scope) -> None:
+    if "sensor" in spec.data:
+        sensors = scope.robots[spec["robot"]].sensors
+        if spec["sensor"] not in sensors:
+            raise spec.error("sensor", f"robot {spec['robot']!r} has no sensor {spec['sensor']!r}; it has: "
+                             f"{', '.join(sorted(sensors)) or '(none)'}")
+
+
+def state_poses_from_stream(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.Pose3]]:
+    """Stream poses interpolated at the robot's state times: (state indices, body poses).
+
+    States outside the stream's time span, or across a gap longer than `max_gap`, get none
+    (the count is reported, not silently dropped)."""
+    stream = ctx.stream(spec["stream"])
+    states = ctx.state_set(robot, spec)
+    inside, arr = interpolate_poses(stream.t, stream.pose_array(), states.t, spec.get("max_gap"))
+    idx = np.flatnonzero(inside)
+    if len(idx) < len(states):
+        ctx.notes.append(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
+                         f"outside stream {stream.name!r} (or across a gap) and get no factor from it")
+    mount_inv = mount_of(ctx, spec).inverse()
+    return idx, [p.compose(mount_inv) for p in poses_from_array(arr)]
+
+
+class AbsolutePose(FactorType):
+    name = "pose.absolute"
+    summary = "absolute pose measurements of a robot (motion capture, GNSS+heading): native prior"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "sensor": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        check_sensor(spec, scope)
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        stream = ctx.stream(spec["stream"])
+        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        planar = states.family.vartype is POSE2
+        noise = ctx.noise(pose_sigmas(spec, planar), spec)
+        mount_inv = mount_of(ctx, spec).inverse()
+        poses = poses_from_array(stream.pose_array()[assoc.row])
+        for k, meas in zip(assoc.state, poses):
+            body = meas.compose(mount_inv)
+            key = ctx.pose_key(robot, int(k))
+            factor = gtsam.PriorFactorPose2(key, to_pose2(body), noise) if planar else \
+                gtsam.PriorFactorPose3(key, body, noise)
+            ctx.add(factor, spec, ctx.state_time(robot, int(k)))
+
+    @classmethod
+    def example(cls, rng):
+        x = gtsam.Pose3.Expmap(rng.normal(size=6))
+        values = gtsam.Values()
+        values.insert(0, x)
+        return FactorExample(gtsam.PriorFactorPose3(0, x, gaussian([0.01] * 3 + [0.02] * 3)), values)
+
+
+class OriginPrior(FactorType):
+    name = "pose.origin"
+    summary = "prior on a robot's first pose: fixes its base frame (default: identity)"
+    robot_fields = ("robot",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "sigma": SIGMA,
+                             "pose": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 7}},
+              "required": ["robot", "sigma"], "additionalProperties": False}
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        vt = ctx.state_set(robot, spec).family.vartype
+        try:
+            pose = vt.from_list(spec["pose"]) if "pose" in spec.data else vt.zero()
+        except ValueError as exc:
+            raise spec.error("pose", f"{exc} for a {vt.name} state") from None
+        key = ctx.pose_key(robot, 0)
+        ctx.add(vt.prior(key, pose, ctx.noise(pose_sigmas(spec, vt is POSE2), spec)), spec,
+                ctx.state_time(robot, 0))
+        ctx.set_initial(key, pose)
+
+    @classmethod
+    def example(cls, rng):
+        return AbsolutePose.example(rng)
+
+
+class RelativePose(FactorType):
+    name = "pose.relative"
+    summary = "odometry: relative pose between consecutive states from a pose stream (native between)"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "sensor": {"type": "string"}, "sigma": SIGMA,
+                             "max_gap": {"type": "number", "exclusiveMinimum": 0}},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        check_sensor(spec, scope)
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        idx, poses = state_poses_from_stream(ctx, spec, robot)
+        planar = ctx.state_set(robot).family.vartype is POSE2
+        noise = ctx.noise(pose_sigmas(spec, planar), spec)
+        for (ka, pa), (kb, pb) in zip(zip(idx[:-1], poses[:-1]), zip(idx[1:], poses[1:])):
+            if kb != ka + 1:
+                continue  # a gap: no odometry across it (already reported)
+            delta = pa.between(pb)
+            a, b = ctx.pose_key(robot, int(ka)), ctx.pose_key(robot, int(kb))
+            factor = gtsam.BetweenFactorPose2(a, b, to_pose2(delta), noise) if planar else \
+                gtsam.BetweenFactorPose3(a, b, delta, noise)
+            ctx.add(factor, spec, ctx.state_time(robot, int(kb)))
+
+    @classmethod
+    def example(cls, rng):
+        xa, xb = (gtsam.Pose3.Expmap(rng.normal(size=6)) for _ in range(2))
+        values = gtsam.Values()
+        values.insert(0, xa)
+        values.insert(1, xb)
+        return FactorExample(gtsam.BetweenFactorPose3(0, 1, xa.between(xb), gaussian([0.01] * 6)), values)
+
+
+def _scaled_error(rot: gtsam.Rot3, t: np.ndarray, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
+    k = this.keys()
+    return scaled_between_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atDouble(k[2]), rot, t, H)
+
+
+def scaled_between_factor(a: int, b: int, s: int, delta_unscaled: gtsam.Pose3, noise) -> gtsam.CustomFactor:
+    """Relative pose a->b measured up to the scale variable s (true translation = s * measured)."""
+    return gtsam.CustomFactor(noise, [a, b, s], partial(_scaled_error, delta_unscaled.rotation(),
+                                                        np.asarray(delta_unscaled.translation())))
+
+
+class ScaledRelativePose(FactorType):
+    name = "pose.scaled_relative"
+    summary = "monocular visual odometry: relative pose with an unknown scale shared by the sequence (eq. 4.3)"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "sensor": {"type": "string"}, "scale": {"type": "string"}, "sigma": SIGMA,
+                             "max_gap": {"type": "number", "exclusiveMinimum": 0}},
+              "required": ["robot", "stream", "scale", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_parameter(spec, "robot", "scale", "scalar")
+        check_sensor(spec, scope)
+        if "sensor" in spec.data:
+            mount = scope.robots[spec["robot"]].sensors[spec["sensor"]].mount
+            if np.linalg.norm(mount.translation()) > 0:
+                raise spec.error("sensor", "a scaled-odometry sensor must sit at the body origin (its "
+                                 "mount may rotate but not translate): make the camera the body frame")
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        if ctx.state_set(robot, spec).family.vartype is not POSE3:
+            raise spec.error("robot", "scaled relative poses need 3-D pose states (states.type: pose3)")
+        idx, poses = state_poses_from_stream(ctx, spec, robot)
+        noise = ctx.noise(pose_sigmas(spec, False), spec)
+        scale = ctx.parameter(robot, spec["scale"])
+        for (ka, pa), (kb, pb) in zip(zip(idx[:-1], poses[:-1]), zip(idx[1:], poses[1:])):
+            if kb != ka + 1:
+                continue
+            a, b = ctx.pose_key(robot, int(ka)), ctx.pose_key(robot, int(kb))
+            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, ctx.state_time(robot, int(kb)))
+
+    @classmethod
+    def example(cls, rng):
+        xa, xb = (gtsam.Pose3.Expmap(rng.normal(size=6)) for _ in range(2))
+        s = float(rng.uniform(0.5, 3.0))
+        d = xa.between(xb)
+        values = gtsam.Values()
+        values.insert(0, xa)
+        values.insert(1, xb)
+        values.insert(2, s)
+        meas = gtsam.Pose3(d.rotation(), d.translation() / s)
+        return FactorExample(scaled_between_factor(0, 1, 2, meas, gaussian([0.01] * 3 + [0.03] * 3)), values)
+
+
+def _co_reg_error(z: gtsam.Pose3, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
+    k = this.keys()
+    return co_registration_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atPose3(k[2]), z, H)
+
+
+def co_registration_factor(xa: int, base: int, xb: int, z: gtsam.Pose3, noise) -> gtsam.CustomFactor:
+    return gtsam.CustomFactor(noise, [xa, base, xb], partial(_co_reg_error, z))
+
+
+BASE_TRANSFORM = "base_in_{robot}"
+
+
+class CoRegistration(FactorType):
+    name = "pose.co_registration"
+    summary = ("robot-to-robot relative pose a_T_b: links two pose chains and estimates the transform "
+               "between their base frames (spec fig. 3.3)")
+    robot_fields = ("robot", "other")
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "other": {"type": "string"},
+                             "stream": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE,
+                             "base_sigma": SIGMA},
+              "required": ["robot", "other", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        if spec["robot"] == spec["other"]:
+            raise spec.error("other", "must name a different robot than `robot`")
+
+    def build(self, ctx, spec: Spec) -> None:
+        a, b = spec["robot"], spec["other"]
+        stream = ctx.stream(spec["stream"])
+        tol = spec.get("tolerance", 0.005)
+        assoc_a = ctx.associate(stream, a, tol, spec)
+        assoc_b = ctx.associate(stream, b, tol, spec)
+        rows = np.intersect1d(assoc_a.row, assoc_b.row)
+        ka = dict(zip(assoc_a.row, assoc_a.state))
+        kb = dict(zip(assoc_b.row, assoc_b.state))
+        prior = pose_sigmas({"sigma": spec["base_sigma"]}, False) if "base_sigma" in spec.data else None
+        base = ctx.static_variable(b, BASE_TRANSFORM.format(robot=a), POSE3, gtsam.Pose3(), prior)
+        noise = ctx.noise(pose_sigmas(spec, False), spec)
+        for row, z in zip(rows, poses_from_array(stream.pose_array()[rows])):
+            xa, xb = ctx.pose_key(a, int(ka[row])), ctx.pose_key(b, int(kb[row]))
+            time = max(ctx.state_time(a, int(ka[row])), ctx.state_time(b, int(kb[row])))
+            ctx.add(co_registration_factor(xa, base, xb, z, noise), spec, time)
+
+    @classmethod
+    def example(cls, rng):
+        xa, w, xb = (gtsam.Pose3.Expmap(rng.normal(size=6)) for _ in range(3))
+        values = gtsam.Values()
+        for k, p in enumerate((xa, w, xb)):
+            values.insert(k, p)
+        z = xa.between(w.compose(xb))
+        return FactorExample(co_registration_factor(0, 1, 2, z, gaussian([0.01] * 3 + [0.02] * 3)), values)
+
+
+class ParameterRandomWalk(FactorType):
+    name = "parameter.random_walk"
+    summary = "chains a time-varying parameter between consecutive states: native between, sigma*sqrt(dt)"
+    robot_fields = ("robot",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "parameter": {"type": "string"},
+                             "sigma": {"type": "number", "exclusiveMinimum": 0}},
+              "required": ["robot", "parameter", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_parameter(spec, "robot", "parameter")
+        if not scope.robots[spec["robot"]].parameters[spec["parameter"]].time_varying:
+            raise spec.error("parameter", f"parameter {spec['parameter']!r} is not time-varying; set "
+                             "`time_varying: true` in the robot description")
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot, name = spec["robot"], spec["parameter"]
+        param = ctx.robot(robot).parameters[name]
+        states = ctx.state_set(robot, spec)
+        dt = np.diff(states.t)
+        zero = param.vartype.zero()
+        for i in range(param.count):
+            prev = ctx.parameter(robot, name, i, 0)
+            for k in range(1, len(states)):
+                key = ctx.parameter(robot, name, i, k)
+                noise = gaussian([spec["sigma"] * np.sqrt(dt[k - 1])] * param.vartype.dim)
+                ctx.add(param.vartype.between(prev, key, zero, noise), spec, float(states.t[k]))
+                prev = key
+
+    @classmethod
+    def example(cls, rng):
+        values = gtsam.Values()
+        a = float(rng.normal())
+        values.insert(0, a)
+        values.insert(1, a)
+        return FactorExample(SCALAR.between(0, 1, 0.0, gaussian([0.1])), values)
+
+
+FACTOR_TYPES = [AbsolutePose, OriginPrior, RelativePose, ScaledRelativePose, CoRegistration, ParameterRandomWalk]

@@ -1,0 +1,132 @@
+"""Initial values for pose states: dead reckoning, interpolation of absolute poses, base transforms."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from fusionkit import Initializer, Spec
+from fusionkit.data.association import interpolate_poses, nearest
+from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
+
+from .factors import BASE_TRANSFORM, to_pose2
+
+
+def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
+    states = ctx.state_set(robot)
+    planar = states.family.vartype.name == "pose2"
+    for k, p in enumerate(poses):
+        key = states.key(k)
+        if ctx.initial.exists(key):
+            ctx.set_initial(key, to_pose2(p) if planar else p)
+
+
+def _at_states(stream, t: np.ndarray) -> list[gtsam.Pose3]:
+    """Stream poses at times t; times outside the stream's span take the nearest end pose."""
+    clipped = np.clip(t, stream.t[0], stream.t[-1])
+    _, arr = interpolate_poses(stream.t, stream.pose_array(), clipped)
+    return poses_from_array(arr)
+
+
+class DeadReckoning(Initializer):
+    name = "pose.dead_reckoning"
+    summary = "compose odometry increments from a start pose (anchored to an absolute stream if given)"
+    robot_fields = ("robot",)
+    stream_fields = ("stream", "anchor")
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "anchor": {"type": "string"}, "scale": {"type": "string"}},
+              "required": ["robot", "stream"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        if "scale" in spec.data:
+            scope.require_parameter(spec, "robot", "scale", "scalar")
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        odo = _at_states(ctx.stream(spec["stream"]), states.t)
+        scale = 1.0
+        if "scale" in spec.data:
+            scale = float(ctx.initial.atDouble(ctx.parameter(robot, spec["scale"])))
+        start = gtsam.Pose3()
+        if "anchor" in spec.data:
+            anchor = ctx.stream(spec["anchor"])
+            first = nearest(anchor.t, states.t[:1], np.inf)
+            start = poses_from_array(anchor.pose_array()[first.state])[0]
+        poses = [start]
+        for a, b in zip(odo[:-1], odo[1:]):
+            d = a.between(b)
+            poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
+        _set_poses(ctx, robot, poses)
+
+
+class ScaleFromAbsolute(Initializer):
+    name = "pose.scale_from_absolute"
+    summary = "initial odometry scale: least-squares ratio of absolute to odometry displacements"
+    robot_fields = ("robot",)
+    stream_fields = ("stream", "anchor")
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "anchor": {"type": "string"}, "scale": {"type": "string"}},
+              "required": ["robot", "stream", "anchor", "scale"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_columns(spec, "anchor", POSE_COLUMNS)
+        scope.require_parameter(spec, "robot", "scale", "scalar")
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        anchor = ctx.stream(spec["anchor"])
+        if len(anchor) < 2:
+            raise spec.error("anchor", f"stream {anchor.name!r} has {len(anchor)} pose(s); the scale needs two")
+        odo = _at_states(ctx.stream(spec["stream"]), anchor.t)
+        d_abs = np.linalg.norm(np.diff(anchor.pose_array()[:, :3], axis=0), axis=1)
+        d_odo = np.linalg.norm(np.diff(np.array([p.translation() for p in odo]), axis=0), axis=1)
+        if not np.any(d_odo > 0):
+            raise spec.error("stream", f"stream {spec['stream']!r} does not move between the anchor poses")
+        ctx.set_initial(ctx.parameter(spec["robot"], spec["scale"]), float(d_abs @ d_odo / (d_odo @ d_odo)))
+
+
+class InterpolateAbsolute(Initializer):
+    name = "pose.interpolate"
+    summary = "interpolate an absolute pose stream at the state times (ends held)"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object", "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}},
+              "required": ["robot", "stream"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        states = ctx.state_set(spec["robot"], spec)
+        _set_poses(ctx, spec["robot"], _at_states(ctx.stream(spec["stream"]), states.t))
+
+
+class BaseTransform(Initializer):
+    name = "pose.base_transform"
+    summary = "initial base-to-base transform of a co-registered robot pair from the first relative pose"
+    robot_fields = ("robot", "other")
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "other": {"type": "string"},
+                             "stream": {"type": "string"}},
+              "required": ["robot", "other", "stream"], "additionalProperties": False}
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        a, b = spec["robot"], spec["other"]
+        stream = ctx.stream(spec["stream"])
+        ka = nearest(ctx.state_set(a, spec).t, stream.t[:1], np.inf).state[0]
+        kb = nearest(ctx.state_set(b, spec).t, stream.t[:1], np.inf).state[0]
+        z = stream.poses()[0]
+        xa = ctx.initial.atPose3(ctx.pose_key(a, int(ka)))
+        xb = ctx.initial.atPose3(ctx.pose_key(b, int(kb)))
+        fam = ctx.keys.get(b, BASE_TRANSFORM.format(robot=a))
+        if fam is None:
+            raise spec.error("other", f"no pose.co_registration factor links {a!r} and {b!r}")
+        ctx.set_initial(fam.key(0), xa.compose(z).compose(xb.inverse()))
+
+
+INITIALIZERS = [ScaleFromAbsolute, DeadReckoning, InterpolateAbsolute, BaseTransform]

@@ -1,0 +1,159 @@
+"""Synthetic pose datasets with truth: scaled monocular VO + sparse motion capture, and two
+co-registered robots. Trajectories are vectorized with numpy; noise is drawn once per stream."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from fusionkit import Simulator, SourceOutput
+from fusionkit.data.stream import pose_array_from, pose_stream, poses_from_array
+
+SIGMA = {"type": "object",
+         "properties": {"rotation": {"type": "number", "minimum": 0},
+                        "translation": {"type": "number", "minimum": 0}},
+         "additionalProperties": False}
+
+
+def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarray,
+                      phase: np.ndarray, offset: np.ndarray, tilt: float = 0.1) -> np.ndarray:
+    """(N, 7) poses: sinusoidal position per axis (m, Hz), heading along the velocity, small
+    roll/pitch oscillation of `tilt` rad."""
+    w = 2 * np.pi * frequency
+    pos = offset + amplitude * np.sin(w * t[:, None] + phase)
+    vel = amplitude * w * np.cos(w * t[:, None] + phase)
+    yaw = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+    roll = tilt * np.sin(0.7 * t)
+    pitch = tilt * np.cos(0.5 * t)
+    quat = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_quat()
+    return np.column_stack([pos, quat])
+
+
+def noisy(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator) -> list[gtsam.Pose3]:
+    """Each pose times Exp(xi), xi ~ N(0, diag(rot^2 x3, trans^2 x3)) in the body frame."""
+    s = np.array([sigma["rotation"]] * 3 + [sigma["translation"]] * 3)
+    xi = rng.standard_normal((len(poses), 6)) * s
+    return [p.compose(gtsam.Pose3.Expmap(x)) for p, x in zip(poses, xi)]
+
+
+def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
+             scale: float = 1.0) -> list[gtsam.Pose3]:
+    """Integrated noisy increments starting at identity; translations divided by `scale` (eq. 4.3)."""
+    increments = noisy([a.between(b) for a, b in zip(poses[:-1], poses[1:])], sigma, rng)
+    out = [gtsam.Pose3()]
+    for d in increments:
+        out.append(out[-1].compose(gtsam.Pose3(d.rotation(), d.translation() / scale)))
+    return out
+
+
+def _times(params: dict) -> np.ndarray:
+    return np.arange(int(round(params["duration"] * params["rate"]))) / params["rate"]
+
+
+class ScaledVoSimulator(Simulator):
+    name = "pose.scaled_vo"
+    summary = "3-D camera trajectory: monocular VO with unknown scale and drift + sparse motion capture"
+    schema = {"type": "object",
+              "properties": {"duration": {"type": "number", "exclusiveMinimum": 0},
+                             "rate": {"type": "number", "exclusiveMinimum": 0},
+                             "scale": {"type": "number", "exclusiveMinimum": 0},
+                             "vo_sigma": SIGMA, "mocap_sigma": SIGMA,
+                             "mocap_every": {"type": "integer", "minimum": 1},
+                             "marker_offset": {"type": "array", "items": {"type": "number"},
+                                               "minItems": 3, "maxItems": 3}},
+              "additionalProperties": False}
+    defaults = {"duration": 25.0, "rate": 30.0, "scale": 2.5, "mocap_every": 60, "marker_offset": [0.0, 0.0, 0.05],
+                "vo_sigma": {"rotation": 0.002, "translation": 0.004},
+                "mocap_sigma": {"rotation": 0.01, "translation": 0.01}}
+
+    def stream_columns(self, params: dict):
+        from fusionkit.data.stream import POSE_COLUMNS
+        return {"vo": POSE_COLUMNS, "mocap": POSE_COLUMNS}
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        t = _times(params)
+        truth_arr = smooth_trajectory(t, np.array([1.5, 1.0, 0.4]), np.array([0.05, 0.1, 0.07]),
+                                      np.array([0.0, 0.3, 1.0]), np.array([0.0, 0.0, 1.5]))
+        truth = poses_from_array(truth_arr)
+        vo = odometry(truth, params["vo_sigma"], rng, params["scale"])
+        every = params["mocap_every"]
+        rows = np.arange(0, len(t), every)
+        marker = gtsam.Pose3(gtsam.Rot3(), np.asarray(params["marker_offset"], float))
+        mocap = noisy([truth[i].compose(marker) for i in rows], params["mocap_sigma"], rng)
+        return SourceOutput(
+            {"vo": pose_stream("vo", t, vo, "simulated:vo"),
+             "mocap": pose_stream("mocap", t[rows], mocap, "simulated:mocap")},
+            {"cam": pose_stream("cam", t, truth_arr, "simulated:truth")},
+            {"cam": {"vo_scale": {"type": "scalar", "value": float(params["scale"])}}})
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        return {"cam": {
+            "name": "handheld_camera", "model": "generic", "frames": ["world", "body"],
+            "sensors": {"camera": {"type": "camera", "frame": "body"},
+                        "marker": {"type": "mocap_marker", "frame": "body",
+                                   "mount": {"translation": list(params["marker_offset"])}}},
+            "parameters": {"vo_scale": {"type": "scalar", "value": 1.0, "sigma": 10.0}}}}
+
+    def config(self, params: dict) -> dict:
+        vo_sigma = {k: max(v, 1e-4) for k, v in params["vo_sigma"].items()}
+        mocap_sigma = {k: max(v, 1e-4) for k, v in params["mocap_sigma"].items()}
+        return {
+            "robots": {"cam": {"description": "robots/cam.yaml", "states": {"stream": "vo"}}},
+            "factors": [
+                {"type": "pose.scaled_relative", "robot": "cam", "stream": "vo", "scale": "vo_scale",
+                 "sigma": vo_sigma},
+                {"type": "pose.absolute", "robot": "cam", "stream": "mocap", "sensor": "marker",
+                 "sigma": mocap_sigma}],
+            "initializers": [
+                {"type": "pose.scale_from_absolute", "robot": "cam", "stream": "vo", "anchor": "mocap",
+                 "scale": "vo_scale"},
+                {"type": "pose.dead_reckoning", "robot": "cam", "stream": "vo", "anchor": "mocap",
+                 "scale": "vo_scale"}],
+            "solver": {"type": "batch", "method": "lm"}}
+
+
+class TwoRobotsSimulator(Simulator):
+    name = "pose.two_robots"
+    summary = "two robots with odometry, one with sparse motion capture, and robot-to-robot relative poses"
+    schema = {"type": "object",
+              "properties": {"duration": {"type": "number", "exclusiveMinimum": 0},
+                             "rate": {"type": "number", "exclusiveMinimum": 0},
+                             "odom_sigma": SIGMA, "relative_sigma": SIGMA, "mocap_sigma": SIGMA,
+                             "relative_every": {"type": "integer", "minimum": 1},
+                             "mocap_every": {"type": "integer", "minimum": 1}},
+              "additionalProperties": False}
+    defaults = {"duration": 30.0, "rate": 10.0, "relative_every": 5, "mocap_every": 25,
+                "odom_sigma": {"rotation": 0.003, "translation": 0.01},
+                "relative_sigma": {"rotation": 0.01, "translation": 0.02},
+                "mocap_sigma": {"rotation": 0.01, "translation": 0.01}}
+
+    def stream_columns(self, params: dict):
+        from fusionkit.data.stream import POSE_COLUMNS
+        return {n: POSE_COLUMNS for n in ("a_odom", "b_odom", "a_mocap", "a_sees_b")}
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        t = _times(params)
+        a = poses_from_array(smooth_trajectory(t, np.array([3.0, 2.0, 0.2]), np.array([0.03, 0.06, 0.05]),
+                                               np.zeros(3), np.array([0.0, 0.0, 0.5]), tilt=0.02))
+        b_world = poses_from_array(smooth_trajectory(t, np.array([2.0, 2.5, 0.1]), np.array([0.04, 0.04, 0.05]),
+                                                     np.array([0.0, 1.5, 0.0]), np.array([1.0, 0.5, 0.5]),
+                                                     tilt=0.02))
+        base_b = b_world[0]  # robot b's base frame is where it started
+        b = [base_b.between(p) for p in b_world]
+        rel_rows = np.arange(0, len(t), params["relative_every"])
+        rel = noisy([a[i].between(b_world[i]) for i in rel_rows], params["relative_sigma"], rng)
+        mocap_rows = np.arange(0, len(t), params["mocap_every"])
+        mocap = noisy([a[i] for i in mocap_rows], params["mocap_sigma"], rng)
+        streams = {
+            "a_odom": pose_stream("a_odom", t, odometry(a, params["odom_sigma"], rng), "simulated:a_odom"),
+            "b_odom": pose_stream("b_odom", t, odometry(b, params["odom_sigma"], rng), "simulated:b_odom"),
+            "a_mocap": pose_stream("a_mocap", t[mocap_rows], mocap, "simulated:a_mocap"),
+            "a_sees_b": pose_stream("a_sees_b", t[rel_rows], rel, "simulated:a_sees_b"),
+        }
+        truth = {"a": pose_stream("a", t, pose_array_from(a)), "b": pose_stream("b", t, pose_array_from(b))}
+        calib = {"b": {"base_in_a": {"type": "pose3", "value": pose_array_from([base_b])[0].tolist()}}}
+        return SourceOutput(streams, truth, calib)
+
+
+SIMULATORS = [ScaledVoSimulator, TwoRobotsSimulator]
