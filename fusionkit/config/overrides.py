@@ -7,6 +7,7 @@ from typing import Any
 import yaml
 
 from ..errors import ConfigError
+from .yamlio import SafeLoader
 
 
 def parse_key_path(text: str) -> tuple:
@@ -26,7 +27,7 @@ def apply_override(data: dict, assignment: str) -> None:
     key, _, raw = assignment.partition("=")
     path = parse_key_path(key.strip())
     try:
-        value: Any = yaml.safe_load(raw) if raw.strip() else ""
+        value: Any = yaml.load(raw, Loader=SafeLoader) if raw.strip() else ""  # noqa: S506
     except yaml.YAMLError:
         raise ConfigError(f"--set {assignment!r}: value is not valid YAML") from None
     node: Any = data

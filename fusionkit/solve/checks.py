@@ -21,7 +21,8 @@ def unconstrained_message(problem: Problem, exc: Exception) -> str | None:
     name = problem.keys.name_of(int(m.group(1)))
     return (f"variable {name} is not constrained by the factors (the system is indeterminate near it): "
             "add a prior or a measurement that fixes it, e.g. a pose.origin or pose.absolute factor for "
-            "the first pose, or a prior sigma for a calibration parameter")
+            "the first pose, or a prior sigma for a calibration parameter; or improve the initial values (a "
+            "redescending robust kernel such as tukey gives no weight to residuals beyond its cutoff)")
 
 
 def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> None:

@@ -1,13 +1,14 @@
 """Helpers for plugin authors: numerical Jacobians and the factor contract suite.
 
     from fusionkit.testing import check_factor_contract
-    check_factor_contract(MyFactorType)        # raises AssertionError with details on failure
+    check_factor_contract(MyFactorType)        # raises ContractFailure (an AssertionError)
 
-or run the suite over every installed factor type with `pytest --pyargs fusionkit.testing`.
+`check_installed_factor_types()` runs it over every factor type of every installed plugin.
 """
 
-from .contract import ContractFailure, FactorExample, check_factor_contract, check_factor_example
+from .contract import (ContractFailure, FactorExample, check_factor_contract, check_factor_example,
+                       check_installed_factor_types)
 from .jacobians import numerical_jacobians
 
 __all__ = ["ContractFailure", "FactorExample", "check_factor_contract", "check_factor_example",
-           "numerical_jacobians"]
+           "check_installed_factor_types", "numerical_jacobians"]

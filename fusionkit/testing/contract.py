@@ -66,3 +66,13 @@ def check_factor_contract(factor_type: type, seeds: tuple[int, ...] = (0, 1, 2))
     for seed in seeds:
         rng = np.random.default_rng(seed)
         check_factor_example(factor_type.example(rng), f"{factor_type.name} (seed {seed})", rng=rng)
+
+
+def check_installed_factor_types() -> list[str]:
+    """Run the contract over every registered factor type; return the names checked."""
+    from ..plugins import registry
+    reg = registry()
+    names = reg.names("factor_types")
+    for name in names:
+        check_factor_contract(reg.get("factor_types", name))
+    return names

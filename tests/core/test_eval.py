@@ -1,0 +1,62 @@
+"""Trajectory errors (ATE with and without alignment, RPE) and sigma consistency, on known cases."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from fusionkit.data.stream import pose_array_from, pose_stream
+from fusionkit.eval.trajectory import position_consistency, trajectory_errors
+
+
+def _circle(n: int = 200):
+    t = np.linspace(0, 20, n)
+    poses = [gtsam.Pose3(gtsam.Rot3.Yaw(a), np.array([np.cos(a) * 3, np.sin(a) * 3, 0.1 * a]))
+             for a in t * 0.3]
+    return t, poses
+
+
+def test_ate_of_constant_offset_equals_offset_and_vanishes_after_se3_alignment():
+    t, poses = _circle()
+    truth = pose_stream("truth", t, poses)
+    offset = gtsam.Pose3(gtsam.Rot3.Yaw(0.2), np.array([0.3, -0.4, 0.0]))  # rigid motion of the whole path
+    moved = pose_stream("est", t, [offset.compose(p) for p in poses])
+    shifted = pose_stream("est", t, pose_array_from(poses) + np.array([0.3, 0.4, 0.0, 0, 0, 0, 0]))
+    assert abs(trajectory_errors(shifted, truth)["ate_rmse_m"] - 0.5) < 1e-9
+    assert trajectory_errors(moved, truth)["ate_rmse_m"] > 0.3
+    assert trajectory_errors(moved, truth, align="se3")["ate_rmse_m"] < 1e-9
+
+
+def test_sim3_alignment_recovers_scale():
+    t, poses = _circle()
+    truth = pose_stream("truth", t, poses)
+    arr = pose_array_from(poses)
+    arr[:, :3] *= 0.4
+    out = trajectory_errors(pose_stream("est", t, arr), truth, align="sim3")
+    assert out["ate_rmse_m"] < 1e-9
+    assert abs(out["alignment_scale"] - 2.5) < 1e-9
+
+
+def test_rpe_of_a_step_error():
+    t, poses = _circle(50)
+    truth = pose_stream("truth", t, poses)
+    arr = pose_array_from(poses)
+    arr[25:, 0] += 0.1  # one jump of 10 cm between frames 24 and 25
+    out = trajectory_errors(pose_stream("est", t, arr), truth)
+    # 49 relative steps, one of which is off by 0.1 m (in the body frame: same norm)
+    assert abs(out["rpe_translation_rmse_m"] - np.sqrt(0.1 ** 2 / 49)) < 1e-9
+    assert out["rpe_rotation_rmse_deg"] < 1e-6
+
+
+def test_consistency_of_gaussian_errors_matches_theory():
+    rng = np.random.default_rng(0)
+    sigma = rng.uniform(0.01, 0.1, size=(20000, 3))
+    truth = rng.normal(size=(20000, 3))
+    est = truth + rng.standard_normal((20000, 3)) * sigma
+    c = position_consistency(est, truth, sigma)
+    for axis in "xyz":
+        assert abs(c[axis]["1sigma"] - 68.27) < 1.5
+        assert abs(c[axis]["2sigma"] - 95.45) < 0.8
+        assert abs(c[axis]["3sigma"] - 99.73) < 0.3
+    over = position_consistency(est, truth, sigma / 2)  # over-confident sigmas show up
+    assert over["x"]["1sigma"] < 45
