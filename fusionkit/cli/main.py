@@ -73,7 +73,8 @@ def cmd_plugins(args) -> int:
     reg = registry()
     listing = {}
     for plugin, provided in reg.by_plugin().items():
-        listing[plugin] = {kind: [{"name": n, "summary": reg.get(kind, n).summary} for n in names]
+        listing[plugin] = {kind: [{"name": n, "summary": reg.get(kind, n).summary,
+                                   "schema": reg.get(kind, n).schema} for n in names]
                            for kind, names in provided.items() if names}
     if args.json:
         print(json.dumps(listing, indent=2))

@@ -10,24 +10,20 @@ def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, rot:
                             t_unscaled: np.ndarray, H: list | None = None) -> np.ndarray:
     """Relative pose with unknown scale (spec eq. 4.3): the sensor reports (R, t / s).
 
-    Prediction xa^-1 xb; measurement Z(s) = (R, s * t_unscaled); error = Log(Z(s)^-1 xa^-1 xb).
-    Jacobians w.r.t. xa, xb (6x6) and s (6x1) are written into H when given.
+    Measurement Z(s) = (R, s * t_unscaled); error e = Log(E), E = Z(s)^-1 xa^-1 xb.
+    Jacobians (written into H when given), with Jr^-1 the inverse right Jacobian at e:
+    d/dxb = Jr^-1;  d/dxa = -Jr^-1 Ad((xa^-1 xb)^-1);  d/ds = -Jr^-1 Ad(E^-1) [0; R^T t_unscaled]
+    (Z(s + ds) = Z(s) Exp([0, R^T t ds])).
     """
-    if H is None:
-        between = xa.between(xb)
-        return gtsam.Pose3.Logmap(gtsam.Pose3(rot, scale * t_unscaled).between(between))
-    Ha, Hb = np.zeros((6, 6), order="F"), np.zeros((6, 6), order="F")
-    between = xa.between(xb, Ha, Hb)
-    z = gtsam.Pose3(rot, scale * t_unscaled)
-    Hz, Hbt = np.zeros((6, 6), order="F"), np.zeros((6, 6), order="F")
-    err_pose = z.between(between, Hz, Hbt)
-    Hl = np.zeros((6, 6), order="F")
-    e = gtsam.Pose3.Logmap(err_pose, Hl)
-    HlHb = Hl @ Hbt
-    H[0] = HlHb @ Ha
-    H[1] = HlHb @ Hb
-    dz_ds = np.concatenate([np.zeros(3), rot.unrotate(t_unscaled)])  # Z(s+ds) = Z(s) Exp([0, R^T t ds])
-    H[2] = (Hl @ Hz @ dz_ds).reshape(6, 1)
+    between = xa.between(xb)
+    err = gtsam.Pose3(rot, scale * t_unscaled).between(between)
+    e = gtsam.Pose3.Logmap(err)
+    if H is not None:
+        j_inv = gtsam.Pose3.LogmapDerivative(e)
+        H[0] = -j_inv @ between.inverse().AdjointMap()
+        H[1] = j_inv
+        dz_ds = np.concatenate([np.zeros(3), rot.unrotate(t_unscaled)])
+        H[2] = -(j_inv @ (err.inverse().AdjointMap() @ dz_ds)).reshape(6, 1)
     return e
 
 
