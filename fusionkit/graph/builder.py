@@ -54,12 +54,15 @@ class Problem:
     states: dict[str, StateSet]
     key_time: dict[int, float]
     notes: list[str] = field(default_factory=list)
+    _graph: gtsam.NonlinearFactorGraph | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
-        g = gtsam.NonlinearFactorGraph()
-        for r in self.records:
-            g.add(r.factor)
-        return g
+        """All factors in one graph (built once; the records do not change after building)."""
+        if self._graph is None:
+            self._graph = gtsam.NonlinearFactorGraph()
+            for r in self.records:
+                self._graph.add(r.factor)
+        return self._graph
 
 
 class BuildContext:

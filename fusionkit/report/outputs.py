@@ -16,32 +16,49 @@ from ..robots.calibration_file import calibration_entry
 from ..robots.description import Parameter
 
 
-def _as_parameter(est: ParameterEstimate, result: RunResult) -> Parameter:
-    base = est.name.split("[")[0]
-    desc = result.config.robots[est.robot].description.parameters.get(base)
+def estimate_entry(result: RunResult, est: ParameterEstimate) -> dict[str, Any]:
+    """{type, value|values, sigma} of one estimate (a time-varying one: its last value)."""
+    desc = result.config.robots[est.robot].description.parameters.get(est.name)
     if desc is not None and est.series_t is None:
-        return desc
-    return Parameter(est.name, est.family.vartype, est.values, None, indexed=len(est.values) > 1 or
-                     (desc is not None and desc.indexed))
+        return calibration_entry(desc, est.values, est.sigma)
+    values, sigma = est.values, est.sigma
+    if est.series_t is not None:
+        values, sigma = values[-1:], None if sigma is None else sigma[-1:]
+    return calibration_entry(Parameter(est.name, est.family.vartype, values, None, indexed=len(values) > 1),
+                             values, sigma)
 
 
-def parameter_entry(est: ParameterEstimate, result: RunResult) -> dict[str, Any]:
-    """{type, value|values, sigma}; time-varying parameters give the last value plus their series."""
-    param = _as_parameter(est, result)
-    if est.series_t is None:
-        return calibration_entry(param, est.values, est.sigma)
-    entry = calibration_entry(Parameter(est.name, param.vartype, est.values[-1:], None, False), est.values[-1:],
-                              None if est.sigma is None else est.sigma[-1:])
-    entry["time_varying"] = True
-    return entry
+def _description_entry(param: Parameter, estimates: dict[str, ParameterEstimate]) -> dict[str, Any] | None:
+    """Entry of a description parameter; a time-varying one gives its last value per element."""
+    if not param.time_varying:
+        est = estimates.get(param.name)
+        return None if est is None else calibration_entry(param, est.values, est.sigma)
+    names = [f"{param.name}[{i}]" for i in range(param.count)] if param.indexed else [param.name]
+    series = [estimates.get(n) for n in names]
+    if any(e is None for e in series):
+        return None
+    last = [e.values[-1] for e in series]
+    sigma = None if any(e.sigma is None for e in series) else np.array([e.sigma[-1] for e in series])
+    return {**calibration_entry(param, last, sigma), "time_varying": True}
 
 
 def calibration_document(result: RunResult) -> dict:
+    """`robots:` holds description parameters (loadable as overrides); `other:` the rest."""
     robots: dict[str, dict] = {}
-    for robot, params in result.parameters.items():
-        for name, est in params.items():
-            robots.setdefault(robot, {})[name] = parameter_entry(est, result)
-    return {"fusionkit_calibration": 1, "robots": robots}
+    other: dict[str, dict] = {}
+    for robot, estimates in result.parameters.items():
+        described = result.config.robots[robot].description.parameters
+        for param in described.values():
+            entry = _description_entry(param, estimates)
+            if entry is not None:
+                robots.setdefault(robot, {})[param.name] = entry
+        for name, est in estimates.items():
+            if name.split("[")[0] not in described:
+                other.setdefault(robot, {})[name] = estimate_entry(result, est)
+    doc: dict[str, Any] = {"fusionkit_calibration": 1, "robots": robots}
+    if other:
+        doc["other"] = other
+    return doc
 
 
 def report_document(result: RunResult) -> dict:
@@ -52,7 +69,7 @@ def report_document(result: RunResult) -> dict:
     params: dict[str, dict] = {}
     for robot, group in result.parameters.items():
         for name, est in group.items():
-            entry = parameter_entry(est, result)
+            entry = estimate_entry(result, est)
             if est.series_t is not None:
                 entry["series"] = {"t": est.series_t.tolist(),
                                    "values": [est.family.vartype.to_list(v) for v in est.values]}
