@@ -66,9 +66,23 @@ class Component(ABC):
 class CheckScope:
     """What `check()` may look at: robot descriptions and stream column names (not data)."""
 
-    def __init__(self, robots: dict[str, "RobotDescription"], stream_columns: dict[str, tuple[str, ...]]):
+    def __init__(self, robots: dict[str, "RobotDescription"], stream_columns: dict[str, tuple[str, ...]],
+                 states: dict[str, dict | None] | None = None):
         self.robots = robots
         self.stream_columns = stream_columns
+        self.states = states or {}
+
+    def require_states(self, spec: Spec, robot_key: str, state_type: str | None = None) -> None:
+        """Error unless robot `spec[robot_key]` has states (of `state_type`: pose3 or pose2)."""
+        robot = spec[robot_key]
+        states = self.states.get(robot)
+        if not states:
+            raise spec.error(robot_key, f"robot {robot!r} has no states; add `states: {{stream: ...}}` "
+                             f"to robots.{robot}")
+        have = states.get("type", "pose3")
+        if state_type and have != state_type:
+            raise spec.error(robot_key, f"robot {robot!r} has {have} states; this needs {state_type} "
+                             f"(robots.{robot}.states.type)")
 
     def require_parameter(self, spec: Spec, robot_key: str, param_key: str, vartype: str | None = None) -> None:
         """Error unless `spec[param_key]` names a parameter of robot `spec[robot_key]`."""

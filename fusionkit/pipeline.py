@@ -100,8 +100,13 @@ def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndar
     trajs, sigmas = {}, {}
     for robot, states in problem.states.items():
         vt = states.family.vartype
+        # only states some factor declared a pose for (a robot may have parameters only, or
+        # states outside the span of its pose streams)
+        ks = [k for k in range(len(states)) if values.exists(states.key(k))]
+        if not ks:
+            continue
         poses, sig = [], []
-        for k in range(len(states)):
+        for k in ks:
             key = states.key(k)
             p = vt.read(values, key)
             if vt.name == "pose2":
@@ -113,8 +118,8 @@ def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndar
             if key in cov:
                 c = cov[key][np.ix_(pos_idx, pos_idx)]
                 sig.append(np.sqrt(np.diag(rot @ c @ rot.T)))
-        trajs[robot] = pose_stream(robot, states.t, pose_array_from(poses), f"estimate:{robot}")
-        if len(sig) == len(states):
+        trajs[robot] = pose_stream(robot, states.t[ks], pose_array_from(poses), f"estimate:{robot}")
+        if len(sig) == len(ks):
             sigmas[robot] = np.asarray(sig)
     return trajs, sigmas
 

@@ -57,6 +57,7 @@ def _plugin_manager() -> pluggy.PluginManager:
         pm.register(importlib.import_module(module_name), name=module_name)
     try:
         pm.load_setuptools_entrypoints(ENTRY_POINT_GROUP)
+        pm.check_pending()  # a @hookimpl whose name is no hook (a typo) must not pass silently
     except Exception as exc:  # a broken third-party plugin must not look like our bug
         raise PluginError(f"cannot load a plugin from entry-point group {ENTRY_POINT_GROUP!r}: "
                           f"{exc.__class__.__name__}: {exc}") from exc
@@ -66,14 +67,21 @@ def _plugin_manager() -> pluggy.PluginManager:
 def build_registry(pm: pluggy.PluginManager) -> Registry:
     """Collect each plugin's registrations; duplicate names and wrong base classes are errors."""
     reg = Registry()
+    # only functions marked @hookimpl count (not any attribute that happens to have a hook's name)
+    impls = {kind: {i.plugin_name: i.function for i in getattr(pm.hook, hook_name).get_hookimpls()}
+             for kind, (hook_name, _) in KINDS.items()}
     for plugin in pm.get_plugins():
         pname = pm.get_name(plugin)
         reg.plugins.append(pname)
         for kind, (hook_name, base) in KINDS.items():
-            impl = getattr(plugin, hook_name, None)
+            impl = impls[kind].get(pname)
             if impl is None:
                 continue
-            for cls in impl() or []:
+            try:
+                provided = impl() or []
+            except Exception as exc:
+                raise PluginError(f"plugin {pname}: {hook_name}() failed: {exc.__class__.__name__}: {exc}") from exc
+            for cls in provided:
                 if not (isinstance(cls, type) and issubclass(cls, base)) or not cls.name:
                     raise PluginError(f"plugin {pname}: {hook_name} returned {cls!r}; expected a "
                                       f"{base.__name__} subclass with a name")

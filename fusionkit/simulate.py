@@ -22,7 +22,8 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
     cls = reg.get("simulators", scenario)
     if cls is None:
         raise ConfigError(f"unknown scenario {scenario!r}; installed simulators: "
-                          f"{', '.join(reg.names('simulators')) or '(none)'}")
+                          f"{', '.join(reg.names('simulators')) or '(none)'} (see `fusionkit plugins`; a third-party "
+                          "scenario needs its package installed)")
     params: dict = {}
     for assignment in overrides:
         apply_override(params, assignment)

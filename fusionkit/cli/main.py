@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -135,6 +136,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fusionkit: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `fusionkit plugins | head`: the reader left, nothing to report
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # as the Python docs advise
+        return 0
     except Exception as exc:  # never a traceback by default
         if args.debug:
             raise

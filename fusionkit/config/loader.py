@@ -8,7 +8,7 @@ from typing import Any, Iterable
 
 from ..components import CheckScope, Spec
 from ..robots.calibration_file import apply_calibration, calibration_entries
-from ..robots.description import RobotDescription, load_description
+from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
 from .overrides import apply_override
 from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, validate_against
 from .yamlio import Document, load_yaml
@@ -88,17 +88,24 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
             raise desc.error(("model",), f"unknown robot model {desc.model!r}; installed: "
                              f"{', '.join(reg.names('robot_models'))}")
         model_schema = dict(model.schema)
-        model_schema["properties"] = dict(model.schema.get("properties", {}))
+        # the common keys were validated already; listing them keeps "accepted keys" complete
+        model_schema["properties"] = {**{k: {} for k in DESCRIPTION_KEYS}, **model.schema.get("properties", {})}
         validate_against(desc.doc, model_schema, desc.extra)
         if "overrides" in raw:
             file = base / raw["overrides"]
-            if not file.is_file():
-                raise doc.error(path + ("overrides",), f"calibration file not found: {file}")
+            _require_file(doc, path + ("overrides",), file)
             cal = load_yaml(file)
             entries = calibration_entries(cal)
             apply_calibration(desc, entries.get(name, {}), cal, name)
         robots[name] = RobotSetup(name, desc, raw.get("states"))
     return robots
+
+
+def _require_file(doc: Document, path: tuple, file: Path) -> None:
+    if file.is_dir():
+        raise doc.error(path, f"{file} is a folder; expected a file")
+    if not file.is_file():
+        raise doc.error(path, f"file not found: {file}")
 
 
 def specs_of(doc: Document, section: str) -> list[Spec]:
@@ -113,7 +120,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
     if not isinstance(doc.data, dict):
         raise doc.error((), "expected a mapping at the top level (robots:, sources:, factors:, ...)")
     for assignment in overrides:
-        apply_override(doc.data, assignment)
+        doc.overrides[apply_override(doc.data, assignment)] = assignment
     validate_against(doc, CONFIG_SCHEMA, doc.data)
     reg = registry()
     base = Path(path).resolve().parent
@@ -121,7 +128,8 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
 
     sources = specs_of(doc, "sources")
     source_objs = _check_entries(doc, sources, "sources", reg, {})
-    scope = CheckScope({n: r.description for n, r in robots.items()}, {})
+    scope = CheckScope({n: r.description for n, r in robots.items()}, {},
+                       {n: r.states for n, r in robots.items()})
     streams: dict[str, tuple[str, ...]] = {}
     stream_source: dict[str, int] = {}
     for i, (spec, src) in enumerate(zip(sources, source_objs)):
@@ -152,10 +160,9 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
         if robot not in robots:
             raise doc.error(("truth", "trajectories", robot), f"unknown robot {robot!r}; the config defines: "
                             f"{', '.join(robots)}")
-        if not (base / file).is_file():
-            raise doc.error(("truth", "trajectories", robot), f"file not found: {base / file}")
-    if "calibration" in truth and not (base / truth["calibration"]).is_file():
-        raise doc.error(("truth", "calibration"), f"file not found: {base / truth['calibration']}")
+        _require_file(doc, ("truth", "trajectories", robot), base / file)
+    if "calibration" in truth:
+        _require_file(doc, ("truth", "calibration"), base / truth["calibration"])
 
     return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
                      robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,

@@ -20,8 +20,17 @@ def parse_key_path(text: str) -> tuple:
     return tuple(parts)
 
 
-def apply_override(data: dict, assignment: str) -> None:
-    """Apply one `key.path=value`; the value is parsed as a YAML scalar/flow value (safe)."""
+def _index(key: str, part, node: list) -> int:
+    """`part` as an index into the list `node`, or a ConfigError saying which indices exist."""
+    if not isinstance(part, int) or part >= len(node):
+        what = f"index {part} out of range" if isinstance(part, int) else f"{part!r} is not a list index"
+        valid = f"0..{len(node) - 1}" if node else "none: the list is empty"
+        raise ConfigError(f"--set {key}: {what} (the list has {len(node)} item(s); indices: {valid})")
+    return part
+
+
+def apply_override(data: dict, assignment: str) -> tuple:
+    """Apply one `key.path=value` and return the key path; the value is parsed as YAML (safe)."""
     if "=" not in assignment:
         raise ConfigError(f"--set {assignment!r}: expected key.path=value")
     key, _, raw = assignment.partition("=")
@@ -34,9 +43,7 @@ def apply_override(data: dict, assignment: str) -> None:
     for i, part in enumerate(path[:-1]):
         nxt = path[i + 1]
         if isinstance(node, list):
-            if not isinstance(part, int) or part >= len(node):
-                raise ConfigError(f"--set {key}: index {part} out of range (list has {len(node)} items)")
-            node = node[part]
+            node = node[_index(key, part, node)]
             continue
         if not isinstance(node, dict):
             raise ConfigError(f"--set {key}: {part!r} is not inside a mapping")
@@ -45,10 +52,9 @@ def apply_override(data: dict, assignment: str) -> None:
         node = node[part]
     last = path[-1]
     if isinstance(node, list):
-        if not isinstance(last, int) or last >= len(node):
-            raise ConfigError(f"--set {key}: index {last} out of range (list has {len(node)} items)")
-        node[last] = value
+        node[_index(key, last, node)] = value
     elif isinstance(node, dict):
         node[last] = value
     else:
         raise ConfigError(f"--set {key}: parent is not a mapping or list")
+    return path

@@ -90,25 +90,96 @@ CONFIG_SCHEMA = {
 }
 
 
+_TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "number": "a number",
+               "integer": "an integer", "boolean": "true or false", "null": "null"}
+
+
+def _is_finite_number(checker, instance) -> bool:
+    """JSON-schema "number", but NaN is not one (`.nan` in YAML is never a meaningful setting)."""
+    return jsonschema.Draft202012Validator.TYPE_CHECKER.is_type(instance, "number") and instance == instance
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator,
+    type_checker=jsonschema.Draft202012Validator.TYPE_CHECKER.redefine("number", _is_finite_number))
+
+
+def expected(schema: Any) -> str:
+    """What a (sub)schema accepts, in words: 'a number > 0', 'a mapping with keys a, b', 'one of: x, y'."""
+    if not isinstance(schema, dict):
+        return "a value"
+    if "enum" in schema:
+        return "one of: " + ", ".join(map(str, schema["enum"]))
+    types = schema.get("type")
+    if types is None:
+        return "a value"
+    types = types if isinstance(types, list) else [types]
+    words = [_TYPE_NAMES.get(t, t) for t in types]
+    text = words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+    if types == ["object"] and schema.get("properties"):
+        text += " with keys " + ", ".join(schema["properties"])
+    if types in (["number"], ["integer"]):
+        bounds = [f"{op} {schema[k]:g}" for k, op in (("exclusiveMinimum", ">"), ("minimum", ">="),
+                                                      ("exclusiveMaximum", "<"), ("maximum", "<="))
+                  if k in schema]
+        text += (" " + " and ".join(bounds)) if bounds else ""
+    if types == ["array"]:
+        lo, hi = schema.get("minItems"), schema.get("maxItems")
+        count = (f" of {lo}" if lo == hi else f" of {lo} to {hi}") if lo is not None and hi is not None else \
+            (f" of at least {lo}" if lo is not None else (f" of at most {hi}" if hi is not None else ""))
+        text += count + (f" {_plural(expected(schema['items']))}" if "items" in schema and count else
+                         (f" of {_plural(expected(schema['items']))}" if "items" in schema else ""))
+    return text
+
+
+def _plural(words: str) -> str:
+    """'a number' -> 'numbers' (for list descriptions); anything else is left as is."""
+    for article in ("a ", "an "):
+        if words.startswith(article) and " " not in words[len(article):]:
+            return words[len(article):] + "s"
+    return words
+
+
 def _describe(error: jsonschema.ValidationError) -> str:
-    """A user-facing sentence for one schema violation."""
+    """A user-facing sentence for one schema violation: what was wrong and what is accepted."""
     if error.validator == "additionalProperties":
         allowed = sorted(error.schema.get("properties", {}))
         extra = sorted(set(error.instance) - set(allowed)) if isinstance(error.instance, dict) else []
         return f"unknown key {', '.join(map(repr, extra))}; accepted keys: {', '.join(allowed) or '(none)'}"
     if error.validator == "required":
-        return error.message.replace("is a required property", "is required but missing")
-    if error.validator == "type":
-        return f"expected {error.validator_value}, got {error.instance!r}"
-    if error.validator == "enum":
-        return f"got {error.instance!r}; accepted: {', '.join(map(str, error.validator_value))}"
+        missing = error.message.split("'")[1] if error.message.count("'") >= 2 else None
+        sub = error.schema.get("properties", {}).get(missing)
+        hint = f" (expected {expected(sub)})" if sub and expected(sub) != "a value" else ""
+        return error.message.replace("is a required property", "is required but missing") + hint
+    if error.validator in ("oneOf", "anyOf"):
+        alternatives = error.validator_value
+        if all(set(a) == {"required"} and len(a["required"]) == 1 for a in alternatives):
+            keys = [a["required"][0] for a in alternatives]
+            return f"needs exactly one of the keys {', '.join(keys)}"
+        return f"got {error.instance!r}; expected " + " or ".join(expected(a) for a in alternatives)
+    if error.validator in ("type", "enum", "minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum",
+                           "minItems", "maxItems", "minProperties", "pattern"):
+        what = "a key" if error.validator == "minProperties" else expected(error.schema)
+        if error.validator == "pattern":
+            what = f"a string matching {error.validator_value}"
+        return f"got {error.instance!r}; expected {what}"
     return error.message
+
+
+def _error_path(error: jsonschema.ValidationError) -> tuple:
+    """Where the error is; an unknown key is located at that key (its own line), not at its parent."""
+    path = tuple(error.absolute_path)
+    if error.validator == "additionalProperties" and isinstance(error.instance, dict):
+        extra = [k for k in error.instance if k not in error.schema.get("properties", {})]
+        if extra:
+            path += (extra[0],)
+    return path
 
 
 def validate_against(doc: Document, schema: dict, instance: Any, path: tuple = ()) -> None:
     """Validate `instance` (found at `path` in `doc`); raise the first error, located."""
-    validator = jsonschema.Draft202012Validator(schema)
+    validator = _Validator(schema)
     errors = sorted(validator.iter_errors(instance), key=lambda e: (len(e.absolute_path), str(e.absolute_path)))
     if errors:
         err = errors[0]
-        raise doc.error(path + tuple(err.absolute_path), _describe(err))
+        raise doc.error(path + _error_path(err), _describe(err))

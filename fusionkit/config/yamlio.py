@@ -45,6 +45,7 @@ class Document:
     data: Any
     file: Path
     lines: dict[tuple, int] = field(default_factory=dict)
+    overrides: dict[tuple, str] = field(default_factory=dict)  # key path -> the `--set` that changed it
 
     def line_of(self, path: tuple) -> int | None:
         """Line of `path`, or of its closest ancestor that has one."""
@@ -56,20 +57,33 @@ class Document:
         return self.lines.get((), None)
 
     def error(self, path: tuple, message: str) -> ConfigError:
+        path = tuple(path)
+        for where, assignment in self.overrides.items():
+            if path[:len(where)] == where:  # the value came from the command line, not from a line of the file
+                return ConfigError(f"{message} (from --set {assignment})", file=str(self.file),
+                                   path=format_path(path) or None)
         return ConfigError(message, file=str(self.file), line=self.line_of(path),
                            path=format_path(path) or None)
 
 
-def _record_lines(node: yaml.Node, path: tuple, lines: dict) -> None:
+def _record_lines(node: yaml.Node, path: tuple, lines: dict, file: str) -> None:
     lines.setdefault(path, node.start_mark.line + 1)
     if isinstance(node, yaml.MappingNode):
+        seen: dict[tuple, int] = {}
         for key_node, value_node in node.value:
             key = key_node.value
-            lines[path + (key,)] = key_node.start_mark.line + 1
-            _record_lines(value_node, path + (key,), lines)
+            line = key_node.start_mark.line + 1
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                if (key_node.tag, key) in seen:  # PyYAML would silently keep the last one
+                    raise ConfigError(f"duplicate key {key!r} (first on line {seen[key_node.tag, key]}); "
+                                      "each key may appear once in a mapping",
+                                      file=file, line=line, path=format_path(path + (key,)))
+                seen[key_node.tag, key] = line
+            lines[path + (key,)] = line
+            _record_lines(value_node, path + (key,), lines, file)
     elif isinstance(node, yaml.SequenceNode):
         for i, item in enumerate(node.value):
-            _record_lines(item, path + (i,), lines)
+            _record_lines(item, path + (i,), lines, file)
 
 
 def load_yaml(file: str | Path) -> Document:
@@ -98,5 +112,5 @@ def parse_yaml(text: str, file: str | Path = "<string>") -> Document:
         raise ConfigError(f"YAML error: {exc}", file=str(file)) from None
     lines: dict[tuple, int] = {}
     if node is not None:
-        _record_lines(node, (), lines)
+        _record_lines(node, (), lines, str(file))
     return Document(data={} if data is None else data, file=Path(file), lines=lines)

@@ -14,38 +14,51 @@ from .stream import POSE_COLUMNS, Stream, check_samples
 
 def _read_text(path: Path) -> str:
     try:
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8-sig")  # a byte-order mark (Excel) is not part of the header
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot read ({exc.__class__.__name__})") from None
+    except IsADirectoryError:
+        raise DataError(f"{path}: is a folder; expected a file") from None
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: cannot read: byte {exc.start} is not UTF-8 text; expected a text file") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
 
 
 def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
     """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
     text = _read_text(path)
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in rows if r and not r[0].lstrip().startswith("#")]
+    reader = csv.reader(io.StringIO(text))
+    rows, lines = [], []  # data rows and their line numbers (comments and blank lines are skipped)
+    for row in reader:
+        if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
+            rows.append(row)
+            lines.append(reader.line_num)
     if not rows:
         raise DataError(f"{path}: empty file; expected a header row starting with 't'")
     header = [h.strip() for h in rows[0]]
     if header[0] != "t":
-        raise DataError(f"{path}:1: first column is {header[0]!r}; expected 't' (time in seconds), "
+        raise DataError(f"{path}:{lines[0]}: first column is {header[0]!r}; expected 't' (time in seconds), "
                         f"header was {','.join(header)}")
+    repeated = sorted({h for h in header if header.count(h) > 1 or not h})
+    if repeated:
+        raise DataError(f"{path}:{lines[0]}: column name(s) {', '.join(map(repr, repeated))} empty or repeated; "
+                        f"expected distinct names, header was {','.join(header)}")
     missing = [c for c in required if c not in header]
     if missing:
-        raise DataError(f"{path}:1: missing column(s) {', '.join(missing)}; header has "
+        raise DataError(f"{path}:{lines[0]}: missing column(s) {', '.join(missing)}; header has "
                         f"{','.join(header)}, expected at least t,{','.join(required)}")
     width = len(header)
     data = np.empty((len(rows) - 1, width))
-    for i, row in enumerate(rows[1:], start=2):
+    for i, (row, line) in enumerate(zip(rows[1:], lines[1:])):
         if len(row) != width:
-            raise DataError(f"{path}:{i}: row has {len(row)} columns; header has {width}")
+            raise DataError(f"{path}:{line}: row has {len(row)} columns; header has {width} ({','.join(header)})")
         try:
-            data[i - 2] = [float(c) for c in row]
+            data[i] = [float(c) for c in row]
         except ValueError:
-            raise DataError(f"{path}:{i}: non-numeric value in row {row!r}; expected numbers") from None
-    check_samples(data[:, 0], data[:, 1:], str(path), first_line=2)
+            j = next(j for j, c in enumerate(row) if not _is_float(c))
+            raise DataError(f"{path}:{line}: column {header[j]!r} has {row[j].strip()!r}; expected a number") from None
+    check_samples(data[:, 0], data[:, 1:], str(path), lines=np.asarray(lines[1:]))
     return Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
 
 
@@ -53,6 +66,17 @@ def write_csv_stream(path: Path, stream: Stream) -> None:
     header = "t," + ",".join(stream.columns)
     np.savetxt(path, np.column_stack([stream.t, stream.values]), delimiter=",", header=header,
                comments="", fmt="%.9g")
+
+
+TUM_FIELDS = ("t",) + POSE_COLUMNS
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def read_tum(path: Path, name: str) -> Stream:
@@ -69,7 +93,9 @@ def read_tum(path: Path, name: str) -> Stream:
         try:
             rows.append([float(p) for p in parts])
         except ValueError:
-            raise DataError(f"{path}:{n}: non-numeric field; expected t x y z qx qy qz qw") from None
+            bad = next(i for i, p in enumerate(parts) if not _is_float(p))
+            raise DataError(f"{path}:{n}: field {bad + 1} ({TUM_FIELDS[bad]}) is {parts[bad]!r}; expected a number "
+                            "(fields: t x y z qx qy qz qw)") from None
         lines.append(n)
     if not rows:
         raise DataError(f"{path}: no poses; expected lines 't x y z qx qy qz qw'")
@@ -77,8 +103,9 @@ def read_tum(path: Path, name: str) -> Stream:
     norms = np.linalg.norm(a[:, 4:], axis=1)
     if np.any(norms < 1e-9):
         bad = int(np.argmax(norms < 1e-9))
-        raise DataError(f"{path}:{lines[bad]}: zero quaternion; expected a unit quaternion qx qy qz qw")
-    check_samples(a[:, 0], a[:, 1:], str(path), first_line=lines[0])
+        raise DataError(f"{path}:{lines[bad]}: {int(np.sum(norms < 1e-9))} row(s) have a zero quaternion (first "
+                        f"at line {lines[bad]}); expected a unit quaternion qx qy qz qw")
+    check_samples(a[:, 0], a[:, 1:], str(path), lines=np.asarray(lines))
     a[:, 4:] /= norms[:, None]
     return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path))
 

@@ -75,18 +75,24 @@ def pose_stream(name: str, t: np.ndarray, poses: list[gtsam.Pose3] | np.ndarray,
     return Stream(name, t, POSE_COLUMNS, arr, origin)
 
 
-def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: int = 1) -> None:
-    """Reject NaN/inf and non-increasing timestamps, saying how many rows and the first line."""
+def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: int = 1,
+                  lines: np.ndarray | None = None) -> None:
+    """Reject NaN/inf and non-increasing timestamps, saying how many rows and the first line.
+
+    Row i is reported as line `lines[i]` when given (files with comments or blank lines), else
+    as `first_line + i`.
+    """
     if len(t) == 0:
         raise DataError(f"{origin}: no samples (expected at least one data row)")
+    line_of = (lambda i: int(lines[i])) if lines is not None else (lambda i: first_line + i)
     bad = ~np.isfinite(t) | ~np.all(np.isfinite(values), axis=1)
     if bad.any():
-        first = int(np.argmax(bad))
-        raise DataError(f"{origin}:{first + first_line}: {int(bad.sum())} row(s) contain NaN or "
-                        f"infinite values (first at line {first + first_line}); expected finite numbers")
+        first = line_of(int(np.argmax(bad)))
+        raise DataError(f"{origin}:{first}: {int(bad.sum())} row(s) contain NaN or "
+                        f"infinite values (first at line {first}); expected finite numbers")
     back = np.diff(t) <= 0
     if back.any():
-        first = int(np.argmax(back)) + 1
-        raise DataError(f"{origin}:{first + first_line}: {int(back.sum())} row(s) have timestamps that do "
-                        f"not increase (first at line {first + first_line}); expected strictly "
+        first = line_of(int(np.argmax(back)) + 1)
+        raise DataError(f"{origin}:{first}: {int(back.sum())} row(s) have timestamps that do "
+                        f"not increase (first at line {first}); expected strictly "
                         "increasing t in seconds")

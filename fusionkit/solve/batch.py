@@ -1,4 +1,5 @@
-"""Batch solvers: Levenberg-Marquardt, Gauss-Newton, Dogleg over the whole graph."""
+"""Batch solvers over the whole graph: Levenberg-Marquardt and Gauss-Newton (iterated from Python,
+see levenberg.py for why) and GTSAM's Dogleg."""
 
 from __future__ import annotations
 
@@ -7,47 +8,51 @@ from typing import Callable
 
 import gtsam
 
+from ..errors import SolverError
 from ..graph.builder import Problem
 from .checks import check_constrained, unconstrained_message
+from .levenberg import DampingSettings, levenberg_marquardt
 from .result import SolveResult
-from ..errors import SolverError
 
-METHODS = {
-    "lm": (gtsam.LevenbergMarquardtParams, gtsam.LevenbergMarquardtOptimizer),
-    "gn": (gtsam.GaussNewtonParams, gtsam.GaussNewtonOptimizer),
-    "dogleg": (gtsam.DoglegParams, gtsam.DoglegOptimizer),
-}
+
+def _dogleg(graph, initial, rtol, atol, max_iterations, progress):
+    params = gtsam.DoglegParams()
+    params.setRelativeErrorTol(rtol)
+    params.setAbsoluteErrorTol(atol)
+    params.setMaxIterations(max_iterations)
+    optimizer = gtsam.DoglegOptimizer(graph, initial, params)
+    history = [optimizer.error()]
+    for it in range(1, max_iterations + 1):
+        optimizer.iterate()
+        history.append(optimizer.error())
+        if progress:
+            progress(it, history[-1])
+        if gtsam.checkConvergence(params, history[-2], history[-1]):
+            break
+    return optimizer.values(), history
 
 
 def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
-    """Iterate the chosen optimizer until the relative/absolute cost decrease is below tolerance."""
+    """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
     check_constrained(problem, graph)
     method = settings.get("method", "lm")
-    params_cls, optimizer_cls = METHODS[method]
-    params = params_cls()
-    params.setRelativeErrorTol(settings.get("relative_tolerance", 1e-6))
-    params.setAbsoluteErrorTol(settings.get("absolute_tolerance", 1e-9))
+    rtol = settings.get("relative_tolerance", 1e-6)
+    atol = settings.get("absolute_tolerance", 1e-9)
     max_iterations = settings.get("max_iterations", 100)
-    params.setMaxIterations(max_iterations)
     start = time.perf_counter()
     try:
-        optimizer = optimizer_cls(graph, problem.initial, params)
-        history = [optimizer.error()]
-        for it in range(1, max_iterations + 1):
-            optimizer.iterate()
-            history.append(optimizer.error())
-            if progress:
-                progress(it, history[-1])
-            if gtsam.checkConvergence(params, history[-2], history[-1]):
-                break
-            if method == "lm" and optimizer.lambda_() >= params.getlambdaUpperBound():
-                break
+        if method == "dogleg":
+            values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress)
+        else:
+            damping = DampingSettings() if method == "lm" else None
+            values, history = levenberg_marquardt(graph, problem.initial, rtol, atol, max_iterations, damping,
+                                                  progress)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)
         if msg is None:
             raise
         raise SolverError(msg) from None
     seconds = time.perf_counter() - start
-    return SolveResult(optimizer.values(), f"batch-{method}", history[0], history[-1], len(history) - 1,
-                       seconds, history=history)
+    return SolveResult(values, f"batch-{method}", history[0], history[-1], len(history) - 1, seconds,
+                       history=history)

@@ -81,6 +81,7 @@ class AbsolutePose(FactorType):
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_states(spec, "robot")
         check_sensor(spec, scope)
 
     def build(self, ctx, spec: Spec) -> None:
@@ -116,6 +117,9 @@ class OriginPrior(FactorType):
                              "pose": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 7}},
               "required": ["robot", "sigma"], "additionalProperties": False}
 
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot")
+
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
         vt = ctx.state_set(robot, spec).family.vartype
@@ -146,6 +150,7 @@ class RelativePose(FactorType):
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_states(spec, "robot")
         check_sensor(spec, scope)
 
     def build(self, ctx, spec: Spec) -> None:
@@ -196,6 +201,7 @@ class ScaledRelativePose(FactorType):
     def check(self, spec: Spec, scope) -> None:
         scope.require_columns(spec, "stream", POSE_COLUMNS)
         scope.require_parameter(spec, "robot", "scale", "scalar")
+        scope.require_states(spec, "robot", "pose3")
         check_sensor(spec, scope)
         if "sensor" in spec.data:
             mount = scope.robots[spec["robot"]].sensors[spec["sensor"]].mount
@@ -205,8 +211,6 @@ class ScaledRelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        if ctx.state_set(robot, spec).family.vartype is not POSE3:
-            raise spec.error("robot", "scaled relative poses need 3-D pose states (states.type: pose3)")
         idx, poses = state_poses_from_stream(ctx, spec, robot)
         noise = ctx.noise(pose_sigmas(spec, False), spec)
         scale = ctx.parameter(robot, spec["scale"])
@@ -255,6 +259,8 @@ class CoRegistration(FactorType):
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_states(spec, "robot", "pose3")
+        scope.require_states(spec, "other", "pose3")
         if spec["robot"] == spec["other"]:
             raise spec.error("other", "must name a different robot than `robot`")
 
@@ -296,6 +302,7 @@ class ParameterRandomWalk(FactorType):
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_parameter(spec, "robot", "parameter")
+        scope.require_states(spec, "robot")
         if not scope.robots[spec["robot"]].parameters[spec["parameter"]].time_varying:
             raise spec.error("parameter", f"parameter {spec['parameter']!r} is not time-varying; set "
                              "`time_varying: true` in the robot description")

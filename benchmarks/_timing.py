@@ -1,0 +1,65 @@
+"""Tiny shared helpers: median wall time with time.perf_counter, and a plain-text table."""
+
+from __future__ import annotations
+
+import gc
+import statistics
+import time
+from typing import Any, Callable
+
+
+def timed(fn: Callable[[], Any]) -> tuple[Any, float]:
+    """(result, seconds) of one call."""
+    tic = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - tic
+
+
+def median_time(fn: Callable[[], Any], repeat: int = 5, warmup: int = 1) -> float:
+    """Median seconds of `repeat` calls of fn() after `warmup` untimed calls (GC off while timing)."""
+    for _ in range(warmup):
+        fn()
+    samples = []
+    for _ in range(repeat):
+        gc.collect()
+        gc.disable()
+        try:
+            tic = time.perf_counter()
+            fn()
+            samples.append(time.perf_counter() - tic)
+        finally:
+            gc.enable()
+    return statistics.median(samples)
+
+
+def median_of(runs: list[dict[str, float]]) -> dict[str, float]:
+    """Per-key median over several runs' timing dicts."""
+    return {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+
+
+def table(headers: list[str], rows: list[list[Any]], title: str = "") -> str:
+    """Right-aligned columns (first column left-aligned); floats are formatted by the caller."""
+    cells = [[str(c) for c in r] for r in rows]
+    widths = [max(len(h), *(len(r[i]) for r in cells)) if cells else len(h) for i, h in enumerate(headers)]
+
+    def line(r):
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
+
+    out = []
+    if title:
+        out += [title, "=" * len(title)]
+    out += [line(headers), line(["-" * w for w in widths])]
+    out += [line(r) for r in cells]
+    return "\n".join(out)
+
+
+def ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.1f}"
+
+
+def us(seconds: float) -> str:
+    return f"{seconds * 1e6:.2f}"
+
+
+def ratio(a: float, b: float) -> str:
+    return f"{a / b:.2f}x" if b > 0 else "n/a"

