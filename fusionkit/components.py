@@ -144,6 +144,9 @@ class Source(Component):
 class RobotModel(Component):
     """Validates the model-specific keys of a robot description (`schema` covers them)."""
 
+    def check_description(self, desc: "RobotDescription") -> None:
+        """Semantic checks of a description after its schema passed (raise `desc.error(...)`)."""
+
 
 class Initializer(Component):
     """Fills initial values (`ctx.set_initial`) after all factors are built."""

@@ -18,7 +18,7 @@ from .errors import DataError
 from .eval.parameters import parameter_errors
 from .eval.trajectory import position_consistency, trajectory_errors
 from .graph.builder import BuildContext, Problem
-from .graph.keys import STATE, STATIC, TIME_VARYING, Family
+from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
 from .robots.calibration_file import calibration_entries
 from .solve import solve
@@ -153,9 +153,11 @@ def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth:
         if robot in position_sigma:
             from .data.association import nearest
             a = nearest(ref.t, trajectories[robot].t, 0.01)
-            est_pos = trajectories[robot].pose_array()[a.row, :3]
-            true_pos = ref.pose_array()[a.state, :3]
-            err["consistency_percent"] = position_consistency(est_pos, true_pos, position_sigma[robot][a.row])
+            sigma = position_sigma[robot][a.row]
+            n = sigma.shape[1]  # x, y for planar (pose2) robots
+            est_pos = trajectories[robot].pose_array()[a.row, :n]
+            true_pos = ref.pose_array()[a.state, :n]
+            err["consistency_percent"] = position_consistency(est_pos, true_pos, sigma)
         ev.setdefault("trajectories", {})[robot] = err
     if truth.calibration:
         ev["parameters"] = parameter_errors(parameters, truth.calibration)

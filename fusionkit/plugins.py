@@ -18,6 +18,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
     "fusionkit.robots.generic",
     "fusionkit_plugins.pose",
+    "fusionkit_plugins.cable_rigid",
 )
 
 KINDS = {

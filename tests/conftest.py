@@ -14,8 +14,6 @@ import fusionkit.plugins
 from fusionkit.data.files import write_csv_stream, write_tum
 from fusionkit.data.stream import Stream, pose_stream
 
-REPO = Path(__file__).resolve().parents[1]
-
 
 class Workspace:
     """A temporary folder to write data files and configs into (paths in configs are relative)."""

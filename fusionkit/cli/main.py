@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import FusionkitError
+from ..errors import FusionkitError, SolverError
 
 EXIT_ERROR, EXIT_INTERNAL = 2, 3
 
@@ -23,6 +23,23 @@ def _progress():
     return show
 
 
+def _output_folder(out: Path) -> Path:
+    """Fail before any work if `out` cannot become a folder (it, or a parent, is an existing file)."""
+    for part in (out, *out.parents):
+        if part.exists():
+            if not part.is_dir():
+                where = "exists and is not a folder" if part == out else f"is inside {part}, which is a file"
+                raise FusionkitError(f"--out {out}: {where}; expected a folder path (created, or replaced "
+                                     "only when everything succeeded)")
+            break
+    return out
+
+
+def _write_error(out: Path, exc: OSError) -> FusionkitError:
+    return FusionkitError(f"--out {out}: cannot write {exc.filename or out} ({exc.strerror or exc}); nothing was "
+                          "written; expected a writable folder")
+
+
 def cmd_run(args) -> int:
     from ..config.loader import load_config
     from ..pipeline import estimate
@@ -31,13 +48,21 @@ def cmd_run(args) -> int:
     from ..report.writer import atomic_directory
 
     config = load_config(args.config, args.set)
+    out = _output_folder(Path(args.out) if args.out else Path("out") / config.name)
     progress = _progress()
-    result = estimate(config, progress)
+    try:
+        result = estimate(config, progress)
+    except BaseException:
+        if progress:
+            print("\r\033[K", end="", file=sys.stderr)  # erase the progress line: the error is the only line
+        raise
     if progress:
         print(file=sys.stderr)
-    out = Path(args.out) if args.out else Path("out") / config.name
-    with atomic_directory(out) as tmp:
-        write_outputs(result, tmp, plots=config.output.get("plots", True) and not args.no_plots)
+    try:
+        with atomic_directory(out) as tmp:
+            write_outputs(result, tmp, plots=config.output.get("plots", True) and not args.no_plots)
+    except OSError as exc:
+        raise _write_error(out, exc) from None
     print(summary_text(result))
     print(f"  outputs: {out}/ (report.json, calibration.yaml, trajectories/, plots/)")
     return 0
@@ -90,8 +115,11 @@ def cmd_plugins(args) -> int:
 
 def cmd_simulate(args) -> int:
     from ..simulate import write_dataset
-    out = Path(args.out)
-    files = write_dataset(args.scenario, out, args.set, args.seed)
+    out = _output_folder(Path(args.out))
+    try:
+        files = write_dataset(args.scenario, out, args.set, args.seed)
+    except OSError as exc:
+        raise _write_error(out, exc) from None
     print(f"wrote {len(files)} files to {out}/; run it with: fusionkit run {out / 'config.yaml'}")
     return 0
 
@@ -124,6 +152,11 @@ def parser() -> argparse.ArgumentParser:
 COMMANDS = {"run": cmd_run, "validate": cmd_validate, "plugins": cmd_plugins, "simulate": cmd_simulate}
 
 
+def _one_line(exc: BaseException) -> str:
+    """The message with line breaks folded, so an error is always exactly one line on stderr."""
+    return " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
@@ -131,7 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     except FusionkitError as exc:
         if args.debug:
             raise
-        print(f"fusionkit: error: {exc}", file=sys.stderr)
+        where = f"{args.config}: " if isinstance(exc, SolverError) and getattr(args, "config", None) else ""
+        print(f"fusionkit: error: {where}{_one_line(exc)}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
         print("fusionkit: interrupted", file=sys.stderr)
@@ -142,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # never a traceback by default
         if args.debug:
             raise
-        print(f"fusionkit: internal error: {exc.__class__.__name__}: {exc} (rerun with --debug for the "
+        print(f"fusionkit: internal error: {exc.__class__.__name__}: {_one_line(exc)} (rerun with --debug for the "
               "traceback and please report it)", file=sys.stderr)
         return EXIT_INTERNAL
 

@@ -91,6 +91,7 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
         # the common keys were validated already; listing them keeps "accepted keys" complete
         model_schema["properties"] = {**{k: {} for k in DESCRIPTION_KEYS}, **model.schema.get("properties", {})}
         validate_against(desc.doc, model_schema, desc.extra)
+        model().check_description(desc)
         if "overrides" in raw:
             file = base / raw["overrides"]
             _require_file(doc, path + ("overrides",), file)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import jsonschema
@@ -96,7 +97,8 @@ _TYPE_NAMES = {"object": "a mapping", "array": "a list", "string": "a string", "
 
 def _is_finite_number(checker, instance) -> bool:
     """JSON-schema "number", but NaN is not one (`.nan` in YAML is never a meaningful setting)."""
-    return jsonschema.Draft202012Validator.TYPE_CHECKER.is_type(instance, "number") and instance == instance
+    return jsonschema.Draft202012Validator.TYPE_CHECKER.is_type(instance, "number") and \
+        not (isinstance(instance, float) and math.isnan(instance))
 
 
 _Validator = jsonschema.validators.extend(
@@ -125,19 +127,24 @@ def expected(schema: Any) -> str:
         text += (" " + " and ".join(bounds)) if bounds else ""
     if types == ["array"]:
         lo, hi = schema.get("minItems"), schema.get("maxItems")
-        count = (f" of {lo}" if lo == hi else f" of {lo} to {hi}") if lo is not None and hi is not None else \
-            (f" of at least {lo}" if lo is not None else (f" of at most {hi}" if hi is not None else ""))
-        text += count + (f" {_plural(expected(schema['items']))}" if "items" in schema and count else
-                         (f" of {_plural(expected(schema['items']))}" if "items" in schema else ""))
+        count = (f"{lo}" if lo == hi else f"{lo} to {hi}") if lo is not None and hi is not None else \
+            (f"at least {lo}" if lo is not None else (f"at most {hi}" if hi is not None else ""))
+        item = expected(schema["items"]) if "items" in schema else "a value"
+        plural = _plural(item)
+        if plural:  # 'a list of 3 numbers', 'a list of strings'
+            text += f" of {count} {plural}" if count else f" of {plural}"
+        else:  # 'a list of at least 1 items (each a mapping with keys type)'
+            noun = "item" if count.split(" ")[-1] == "1" else "items"
+            text += (f" of {count} {noun}" if count else "") + (f" (each {item})" if item != "a value" else "")
     return text
 
 
-def _plural(words: str) -> str:
-    """'a number' -> 'numbers' (for list descriptions); anything else is left as is."""
+def _plural(words: str) -> str | None:
+    """'a number' -> 'numbers', for list descriptions; None when the words are not one simple noun."""
     for article in ("a ", "an "):
-        if words.startswith(article) and " " not in words[len(article):]:
+        if words.startswith(article) and " " not in words[len(article):] and words != "a value":
             return words[len(article):] + "s"
-    return words
+    return None
 
 
 def _describe(error: jsonschema.ValidationError) -> str:

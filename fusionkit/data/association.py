@@ -56,9 +56,21 @@ def interpolate_poses(sample_t: np.ndarray, poses: np.ndarray, query_t: np.ndarr
     if max_gap is not None:
         hi = np.clip(np.searchsorted(sample_t, q), 1, len(sample_t) - 1)
         gap = sample_t[hi] - sample_t[hi - 1]
-        ok = gap <= max_gap
+        on_sample = (q == sample_t[hi]) | (q == sample_t[hi - 1])  # no interpolation needed
+        ok = (gap <= max_gap) | on_sample
         full = np.flatnonzero(inside)
         inside = inside.copy()
         inside[full[~ok]] = False
         out = out[ok]
     return inside, out
+
+
+def segment_ids(sample_t: np.ndarray, query_t: np.ndarray, max_gap: float | None) -> np.ndarray:
+    """For each query time, the index of the gap-free stretch of samples it falls in (stretches are
+    separated by sample gaps longer than `max_gap`); queries in different stretches must not be
+    linked by a relative measurement."""
+    if max_gap is None or len(sample_t) < 2:
+        return np.zeros(len(query_t), dtype=int)
+    seg = np.concatenate([[0], np.cumsum(np.diff(sample_t) > max_gap)])
+    lo = np.clip(np.searchsorted(sample_t, query_t, side="right") - 1, 0, len(sample_t) - 1)
+    return seg[lo]

@@ -20,7 +20,9 @@ def _read_text(path: Path) -> str:
     except IsADirectoryError:
         raise DataError(f"{path}: is a folder; expected a file") from None
     except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: cannot read: byte {exc.start} is not UTF-8 text; expected a text file") from None
+        line = exc.object[:exc.start].count(b"\n") + 1
+        raise DataError(f"{path}:{line}: cannot read: byte {exc.start} is not UTF-8 text; expected a text file") \
+            from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
 

@@ -6,7 +6,7 @@ frame, Pose2 = [x, y, theta], imu bias = [accelerometer (m/s^2), gyroscope (rad/
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 import gtsam
@@ -135,10 +135,9 @@ def vector_type(dim: int) -> VarType:
         lambda: np.zeros(dim))
 
 
-VELOCITY3 = vector_type(3)
+VELOCITY3 = replace(vector_type(3), name="velocity3")  # a 3-vector that reports itself as velocity3
 
-_NAMED = {t.name: t for t in (POSE3, POSE2, POINT3, POINT2, ROT3, SCALAR, IMU_BIAS)}
-_NAMED["velocity3"] = VELOCITY3
+_NAMED = {t.name: t for t in (POSE3, POSE2, POINT3, POINT2, ROT3, SCALAR, VELOCITY3, IMU_BIAS)}
 
 
 def vartype_named(name: str) -> VarType:

@@ -13,16 +13,39 @@ from ..graph.builder import Problem
 _KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
 
 
-def unconstrained_message(problem: Problem, exc: Exception) -> str | None:
-    """Turn GTSAM's indeterminate-system error into a sentence naming the variable."""
+def _indeterminate_key(exc: Exception) -> int | None:
     m = _KEY_IN_MESSAGE.search(str(exc))
-    if not m:
+    return int(m.group(1)) if m else None
+
+
+def unconstrained_message(problem: Problem, exc: Exception, key: int | None = None) -> str | None:
+    """Turn GTSAM's indeterminate-system error into a sentence naming the variable (`key` if given)."""
+    key = _indeterminate_key(exc) if key is None else key
+    if key is None:
         return None
-    name = problem.keys.name_of(int(m.group(1)))
+    name = problem.keys.name_of(key)
     return (f"variable {name} is not constrained by the factors (the system is indeterminate near it): "
             "add a prior or a measurement that fixes it, e.g. a pose.origin or pose.absolute factor for "
             "the first pose, or a prior sigma for a calibration parameter; or improve the initial values (a "
             "redescending robust kernel such as tukey gives no weight to residuals beyond its cutoff)")
+
+
+def _first_of_family(problem: Problem, linear: gtsam.GaussianFactorGraph, key: int) -> int:
+    """GTSAM names the variable it eliminated last, often the far end of a floating chain (cam/pose[148]).
+    When the family's first variable (cam/pose[0]) is indeterminate too, name that one instead."""
+    try:
+        family, index = problem.keys.decode(key)
+    except KeyError:
+        return key
+    first = family.key(0)
+    if index == 0 or not problem.initial.exists(first):
+        return key
+    try:
+        linear.eliminateSequential(gtsam.Ordering.ColamdConstrainedLastGaussianFactorGraph(linear, [first]))
+    except RuntimeError as exc:
+        if _indeterminate_key(exc) == first:
+            return first
+    return key
 
 
 def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> None:
@@ -30,14 +53,16 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> No
     used = set(graph.keyVector())
     for key in problem.initial.keys():
         if key not in used:
-            raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor")
+            raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor: add a factor that "
+                              "measures it, or remove what declares it")
+    linear = graph.linearize(problem.initial)
     try:
-        graph.linearize(problem.initial).eliminateMultifrontal()
+        linear.eliminateMultifrontal()
     except RuntimeError as exc:
-        msg = unconstrained_message(problem, exc)
-        if msg is None:
+        key = _indeterminate_key(exc)
+        if key is None:
             raise
-        raise SolverError(msg) from None
+        raise SolverError(unconstrained_message(problem, exc, _first_of_family(problem, linear, key))) from None
 
 
 def residual_dimension(graph: gtsam.NonlinearFactorGraph) -> int:

@@ -10,7 +10,7 @@ import gtsam
 import numpy as np
 
 from fusionkit import FactorType, Spec
-from fusionkit.data.association import interpolate_poses
+from fusionkit.data.association import interpolate_poses, segment_ids
 from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
 from fusionkit.graph.noise import gaussian
 from fusionkit.graph.variables import POSE2, POSE3, SCALAR
@@ -53,11 +53,11 @@ def check_sensor(spec: Spec, scope) -> None:
                              f"{', '.join(sorted(sensors)) or '(none)'}")
 
 
-def state_poses_from_stream(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.Pose3]]:
-    """Stream poses interpolated at the robot's state times: (state indices, body poses).
+def odometry_pairs(ctx, spec: Spec, robot: str) -> list[tuple[int, int, gtsam.Pose3, gtsam.Pose3]]:
+    """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times.
 
-    States outside the stream's time span, or across a gap longer than `max_gap`, get none
-    (the count is reported, not silently dropped)."""
+    States outside the stream's time span, or inside a gap longer than `max_gap`, get none, and
+    no pair spans a gap (the count is reported, not silently dropped)."""
     stream = ctx.stream(spec["stream"])
     states = ctx.state_set(robot, spec)
     inside, arr = interpolate_poses(stream.t, stream.pose_array(), states.t, spec.get("max_gap"))
@@ -65,8 +65,11 @@ def state_poses_from_stream(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, li
     if len(idx) < len(states):
         ctx.notes.append(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
                          f"outside stream {stream.name!r} (or across a gap) and get no factor from it")
+    segment = segment_ids(stream.t, states.t[idx], spec.get("max_gap"))
     mount_inv = mount_of(ctx, spec).inverse()
-    return idx, [p.compose(mount_inv) for p in poses_from_array(arr)]
+    poses = [p.compose(mount_inv) for p in poses_from_array(arr)]
+    return [(int(idx[j]), int(idx[j + 1]), poses[j], poses[j + 1]) for j in range(len(idx) - 1)
+            if idx[j + 1] == idx[j] + 1 and segment[j] == segment[j + 1]]
 
 
 class AbsolutePose(FactorType):
@@ -155,17 +158,14 @@ class RelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        idx, poses = state_poses_from_stream(ctx, spec, robot)
         planar = ctx.state_set(robot).family.vartype is POSE2
         noise = ctx.noise(pose_sigmas(spec, planar), spec)
-        for (ka, pa), (kb, pb) in zip(zip(idx[:-1], poses[:-1]), zip(idx[1:], poses[1:])):
-            if kb != ka + 1:
-                continue  # a gap: no odometry across it (already reported)
+        for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
             delta = pa.between(pb)
-            a, b = ctx.pose_key(robot, int(ka)), ctx.pose_key(robot, int(kb))
+            a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
             factor = gtsam.BetweenFactorPose2(a, b, to_pose2(delta), noise) if planar else \
                 gtsam.BetweenFactorPose3(a, b, delta, noise)
-            ctx.add(factor, spec, ctx.state_time(robot, int(kb)))
+            ctx.add(factor, spec, ctx.state_time(robot, kb))
 
     @classmethod
     def example(cls, rng):
@@ -211,14 +211,11 @@ class ScaledRelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        idx, poses = state_poses_from_stream(ctx, spec, robot)
         noise = ctx.noise(pose_sigmas(spec, False), spec)
         scale = ctx.parameter(robot, spec["scale"])
-        for (ka, pa), (kb, pb) in zip(zip(idx[:-1], poses[:-1]), zip(idx[1:], poses[1:])):
-            if kb != ka + 1:
-                continue
-            a, b = ctx.pose_key(robot, int(ka)), ctx.pose_key(robot, int(kb))
-            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, ctx.state_time(robot, int(kb)))
+        for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
+            a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
+            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, ctx.state_time(robot, kb))
 
     @classmethod
     def example(cls, rng):

@@ -5,50 +5,11 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit import Simulator, SourceOutput
 from fusionkit.data.stream import pose_array_from, pose_stream, poses_from_array
-
-SIGMA = {"type": "object",
-         "properties": {"rotation": {"type": "number", "minimum": 0},
-                        "translation": {"type": "number", "minimum": 0}},
-         "additionalProperties": False}
-
-
-def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarray,
-                      phase: np.ndarray, offset: np.ndarray, tilt: float = 0.1) -> np.ndarray:
-    """(N, 7) poses: sinusoidal position per axis (m, Hz), heading along the velocity, small
-    roll/pitch oscillation of `tilt` rad."""
-    w = 2 * np.pi * frequency
-    pos = offset + amplitude * np.sin(w * t[:, None] + phase)
-    vel = amplitude * w * np.cos(w * t[:, None] + phase)
-    yaw = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
-    roll = tilt * np.sin(0.7 * t)
-    pitch = tilt * np.cos(0.5 * t)
-    quat = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_quat()
-    return np.column_stack([pos, quat])
-
-
-def noisy(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator) -> list[gtsam.Pose3]:
-    """Each pose times Exp(xi), xi ~ N(0, diag(rot^2 x3, trans^2 x3)) in the body frame."""
-    s = np.array([sigma["rotation"]] * 3 + [sigma["translation"]] * 3)
-    xi = rng.standard_normal((len(poses), 6)) * s
-    return [p.compose(gtsam.Pose3.Expmap(x)) for p, x in zip(poses, xi)]
-
-
-def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
-             scale: float = 1.0) -> list[gtsam.Pose3]:
-    """Integrated noisy increments starting at identity; translations divided by `scale` (eq. 4.3)."""
-    increments = noisy([a.between(b) for a, b in zip(poses[:-1], poses[1:])], sigma, rng)
-    out = [gtsam.Pose3()]
-    for d in increments:
-        out.append(out[-1].compose(gtsam.Pose3(d.rotation(), d.translation() / scale)))
-    return out
-
-
-def _times(params: dict) -> np.ndarray:
-    return np.arange(int(round(params["duration"] * params["rate"]))) / params["rate"]
+from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import noisy, odometry, sample_times, smooth_trajectory
 
 
 class ScaledVoSimulator(Simulator):
@@ -72,7 +33,7 @@ class ScaledVoSimulator(Simulator):
         return {"vo": POSE_COLUMNS, "mocap": POSE_COLUMNS}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
-        t = _times(params)
+        t = sample_times(params["duration"], params["rate"])
         truth_arr = smooth_trajectory(t, np.array([1.5, 1.0, 0.4]), np.array([0.05, 0.1, 0.07]),
                                       np.array([0.0, 0.3, 1.0]), np.array([0.0, 0.0, 1.5]))
         truth = poses_from_array(truth_arr)
@@ -133,7 +94,7 @@ class TwoRobotsSimulator(Simulator):
         return {n: POSE_COLUMNS for n in ("a_odom", "b_odom", "a_mocap", "a_sees_b")}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
-        t = _times(params)
+        t = sample_times(params["duration"], params["rate"])
         a = poses_from_array(smooth_trajectory(t, np.array([3.0, 2.0, 0.2]), np.array([0.03, 0.06, 0.05]),
                                                np.zeros(3), np.array([0.0, 0.0, 0.5]), tilt=0.02))
         b_world = poses_from_array(smooth_trajectory(t, np.array([2.0, 2.5, 0.1]), np.array([0.04, 0.04, 0.05]),

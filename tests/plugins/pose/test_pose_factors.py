@@ -261,8 +261,6 @@ def test_relative_pose_skips_gaps_and_states_outside_the_stream(workspace):
                              "factor from it"]
 
 
-@pytest.mark.xfail(strict=True, reason="fusionkit/data/association.py interpolate_poses: a query exactly at the "
-                   "first sample after a gap is judged by the gap before it and dropped")
 def test_a_state_on_the_first_sample_after_a_gap_keeps_its_odometry(workspace):
     """States clocked by the odometry stream itself: the state on the first sample after the gap
     is a measured pose (no interpolation), so odometry resumes from it."""

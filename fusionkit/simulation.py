@@ -1,0 +1,50 @@
+"""Building blocks for simulators: smooth trajectories, pose noise, integrated odometry.
+Vectorized where the math allows; noise is drawn once per stream from the caller's generator."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+POSE_SIGMA_SCHEMA = {"type": "object",
+                     "properties": {"rotation": {"type": "number", "minimum": 0},
+                                    "translation": {"type": "number", "minimum": 0}},
+                     "additionalProperties": False}
+
+
+def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarray,
+                      phase: np.ndarray, offset: np.ndarray, tilt: float = 0.1) -> np.ndarray:
+    """(N, 7) poses: sinusoidal position per axis (m, Hz), heading along the velocity, small
+    roll/pitch oscillation of `tilt` rad."""
+    w = 2 * np.pi * frequency
+    pos = offset + amplitude * np.sin(w * t[:, None] + phase)
+    vel = amplitude * w * np.cos(w * t[:, None] + phase)
+    yaw = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+    roll = tilt * np.sin(0.7 * t)
+    pitch = tilt * np.cos(0.5 * t)
+    quat = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_quat()
+    return np.column_stack([pos, quat])
+
+
+def noisy(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator) -> list[gtsam.Pose3]:
+    """Each pose times Exp(xi), xi ~ N(0, diag(rot^2 x3, trans^2 x3)) in the body frame."""
+    s = np.array([sigma["rotation"]] * 3 + [sigma["translation"]] * 3)
+    xi = rng.standard_normal((len(poses), 6)) * s
+    return [p.compose(gtsam.Pose3.Expmap(x)) for p, x in zip(poses, xi)]
+
+
+def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
+             scale: float = 1.0) -> list[gtsam.Pose3]:
+    """Integrated noisy increments starting at identity; translations divided by `scale` (eq. 4.3)."""
+    increments = noisy([a.between(b) for a, b in zip(poses[:-1], poses[1:])], sigma, rng)
+    out = [gtsam.Pose3()]
+    for d in increments:
+        out.append(out[-1].compose(gtsam.Pose3(d.rotation(), d.translation() / scale)))
+    return out
+
+
+
+def sample_times(duration: float, rate: float) -> np.ndarray:
+    """Sample times (s) of a `duration`-second recording at `rate` Hz, starting at 0."""
+    return np.arange(int(round(duration * rate))) / rate

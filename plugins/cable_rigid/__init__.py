@@ -1,0 +1,17 @@
+"""Built-in `cable_rigid` plugin: the cdpr robot model, rigid/elastic cable factors, pulley
+pseudo-measurements (spec cable_rigid.md)."""
+
+from fusionkit import hookimpl
+
+from .factors import FACTOR_TYPES
+from .model import CdprModel
+
+
+@hookimpl
+def register_factor_types():
+    return FACTOR_TYPES
+
+
+@hookimpl
+def register_robot_models():
+    return [CdprModel]

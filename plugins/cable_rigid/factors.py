@@ -1,0 +1,245 @@
+"""Rigid-cable factor types (spec cable_rigid.md): cable length with encoder offset (eq. 4.1),
+elastic cable with measured tension (eq. 4.2), and the pseudo-measurements on pulley geometry."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import gtsam
+import numpy as np
+
+from fusionkit import FactorType, Spec, gaussian
+from fusionkit.testing import FactorExample
+
+from .model import cable_robot
+from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
+
+SIGMA = {"type": "number", "exclusiveMinimum": 0}
+INDEX_LIST = {"type": "array", "items": {"type": "integer", "minimum": 0}, "minItems": 1}
+
+
+def length_columns(spec: Spec, n: int) -> list[str]:
+    """Stream columns of the cable lengths: `columns:` or l0 .. l{n-1}."""
+    return list(spec.get("columns") or [f"l{i}" for i in range(n)])
+
+
+def check_cdpr(spec: Spec, scope) -> int:
+    """The robot must be a cdpr; returns its number of cables."""
+    desc = scope.robots[spec["robot"]]
+    if desc.model != "cdpr":
+        raise spec.error("robot", f"robot {spec['robot']!r} is a {desc.model!r} robot; this factor needs a cdpr")
+    return len(desc.extra["cables"]["attachments"])
+
+
+def check_cables(spec: Spec, key: str, n: int) -> None:
+    bad = [i for i in spec.get(key, []) if i >= n]
+    if bad:
+        raise spec.error(key, f"cable index {bad[0]} out of range: the robot has cables 0..{n - 1}")
+
+
+def attachment_offset(b: np.ndarray) -> gtsam.Pose3:
+    return gtsam.Pose3(gtsam.Rot3(), np.asarray(b, float))
+
+
+class CableLength(FactorType):
+    name = "cable.length"
+    summary = "rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (eq. 4.1): native GTSAM range+bias factor"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}, "sigma": SIGMA,
+                             "columns": {"type": "array", "items": {"type": "string"}},
+                             "cables": INDEX_LIST, "tolerance": {"type": "number", "minimum": 0}},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        n = check_cdpr(spec, scope)
+        scope.require_states(spec, "robot", "pose3")
+        check_cables(spec, "cables", n)
+        if "columns" in spec.data and len(spec["columns"]) != n:
+            raise spec.error("columns", f"{len(spec['columns'])} columns named; the robot has {n} cables")
+        scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        cdpr = cable_robot(ctx.robot(robot))
+        stream = ctx.stream(spec["stream"])
+        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        noise = ctx.noise([spec["sigma"]], spec)
+        columns = length_columns(spec, cdpr.n)
+        for i in spec.get("cables", range(cdpr.n)):
+            pulley, offset = ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "offset", i)
+            mount = attachment_offset(cdpr.attachments[i])
+            z = stream.column(columns[i])[assoc.row]
+            for k, zk in zip(assoc.state, z):
+                factor = gtsam.RangeFactorWithTransformBias3D(ctx.pose_key(robot, int(k)), pulley, offset,
+                                                              float(zk), noise, mount)
+                ctx.add(factor, spec, ctx.state_time(robot, int(k)))
+
+    @classmethod
+    def example(cls, rng):
+        pose = gtsam.Pose3.Expmap(rng.normal(size=6))
+        b, a, l0 = rng.normal(size=3) * 0.2, rng.normal(size=3) * 3, float(rng.normal())
+        z = float(np.linalg.norm(pose.transformFrom(b) - a)) + l0
+        values = gtsam.Values()
+        values.insert(0, pose)
+        values.insert(1, a)
+        values.insert(2, l0)
+        return FactorExample(gtsam.RangeFactorWithTransformBias3D(0, 1, 2, z, gaussian([0.001]),
+                                                                  attachment_offset(b)), values)
+
+
+def _elastic_error(b: np.ndarray, stretch: float, z: float, this, v: gtsam.Values, H) -> np.ndarray:
+    k = this.keys()
+    return elastic_cable_residual(v.atPose3(k[0]), v.atPoint3(k[1]), v.atDouble(k[2]), b, stretch, z, H)
+
+
+def elastic_cable_factor(pose: int, pulley: int, offset: int, b, stretch: float, z: float, noise):
+    return gtsam.CustomFactor(noise, [pose, pulley, offset], partial(_elastic_error, np.asarray(b, float),
+                                                                     float(stretch), float(z)))
+
+
+class ElasticCableLength(FactorType):
+    name = "cable.elastic_length"
+    summary = "elastic cable with measured tension T_i: z_i = (1 - T_i/EA) l*_i + l0_i (eq. 4.2)"
+    robot_fields = ("robot",)
+    stream_fields = ("stream", "tension_stream")
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
+                             "tension_stream": {"type": "string"}, "sigma": SIGMA, "tension_sigma": SIGMA,
+                             "columns": {"type": "array", "items": {"type": "string"}},
+                             "tension_columns": {"type": "array", "items": {"type": "string"}},
+                             "cables": INDEX_LIST, "tolerance": {"type": "number", "minimum": 0}},
+              "required": ["robot", "stream", "tension_stream", "sigma", "tension_sigma"],
+              "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        n = check_cdpr(spec, scope)
+        scope.require_states(spec, "robot", "pose3")
+        check_cables(spec, "cables", n)
+        if "stiffness_EA" not in scope.robots[spec["robot"]].extra["cables"]:
+            raise spec.error("robot", f"robot {spec['robot']!r} has no cables.stiffness_EA; elastic cables need it")
+        scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
+        tcols = tuple(spec.get("tension_columns") or [f"T{i}" for i in range(n)])
+        scope.require_columns(spec, "tension_stream", tcols)
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        desc = ctx.robot(robot)
+        cdpr = cable_robot(desc)
+        lengths, tensions = ctx.stream(spec["stream"]), ctx.stream(spec["tension_stream"])
+        tol = spec.get("tolerance", 0.005)
+        a_len = ctx.associate(lengths, robot, tol, spec)
+        a_ten = ctx.associate(tensions, robot, tol, spec)
+        tension_row = dict(zip(a_ten.state, a_ten.row))
+        columns = length_columns(spec, cdpr.n)
+        tcols = spec.get("tension_columns") or [f"T{i}" for i in range(cdpr.n)]
+        offsets = desc.parameters["offset"].values
+        for i in spec.get("cables", range(cdpr.n)):
+            pulley, offset = ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "offset", i)
+            z_all, t_all = lengths.column(columns[i]), tensions.column(tcols[i])
+            for k, row in zip(a_len.state, a_len.row):
+                if k not in tension_row:
+                    continue
+                z = float(z_all[row])
+                stretch = float(t_all[tension_row[k]]) / cdpr.stiffness_EA
+                # tension noise enters through the length: d e / d T = -l*/EA, with l* ~ z - l0
+                sigma = np.hypot(spec["sigma"], (z - float(offsets[i])) / cdpr.stiffness_EA * spec["tension_sigma"])
+                factor = elastic_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
+                                              stretch, z, ctx.noise([sigma], spec))
+                ctx.add(factor, spec, ctx.state_time(robot, int(k)))
+
+    @classmethod
+    def example(cls, rng):
+        pose = gtsam.Pose3.Expmap(rng.normal(size=6))
+        b, a, l0 = rng.normal(size=3) * 0.2, rng.normal(size=3) * 3, float(rng.normal())
+        stretch = float(rng.uniform(0.0, 0.01))
+        z = (1 - stretch) * float(np.linalg.norm(pose.transformFrom(b) - a)) + l0
+        values = gtsam.Values()
+        values.insert(0, pose)
+        values.insert(1, a)
+        values.insert(2, l0)
+        return FactorExample(elastic_cable_factor(0, 1, 2, b, stretch, z, gaussian([0.001])), values)
+
+
+class PulleyDistance(FactorType):
+    name = "cable.pulley_distance"
+    summary = "pseudo-measurement: a taped distance between two pulleys, ||a_i - a_j|| = d (native range)"
+    robot_fields = ("robot",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"},
+                             "pulleys": {"type": "array", "items": {"type": "integer", "minimum": 0},
+                                         "minItems": 2, "maxItems": 2},
+                             "distance": {"type": "number", "exclusiveMinimum": 0}, "sigma": SIGMA},
+              "required": ["robot", "pulleys", "distance", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_cables(spec, "pulleys", check_cdpr(spec, scope))
+
+    def build(self, ctx, spec: Spec) -> None:
+        i, j = spec["pulleys"]
+        robot = spec["robot"]
+        ctx.add(gtsam.RangeFactor3(ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "pulley", j),
+                                    float(spec["distance"]), ctx.noise([spec["sigma"]], spec)), spec)
+
+    @classmethod
+    def example(cls, rng):
+        a, b = rng.normal(size=3) * 3, rng.normal(size=3) * 3
+        values = gtsam.Values()
+        values.insert(0, a)
+        values.insert(1, b)
+        return FactorExample(gtsam.RangeFactor3(0, 1, float(np.linalg.norm(a - b)), gaussian([0.005])), values)
+
+
+def _plane_error(this, v: gtsam.Values, H) -> np.ndarray:
+    return plane_distance_residual(*(v.atPoint3(k) for k in this.keys()), H)
+
+
+def _normal_error(normal: np.ndarray, this, v: gtsam.Values, H) -> np.ndarray:
+    k = this.keys()
+    return along_normal_residual(v.atPoint3(k[0]), v.atPoint3(k[1]), normal, H)
+
+
+class PulleysCoplanar(FactorType):
+    name = "cable.pulleys_coplanar"
+    summary = ("pseudo-measurement: pulleys on one plane; with `normal`, n.(a_j - a_i) = 0 (one wall); "
+               "without, each pulley beyond the third lies on the plane of the first three")
+    robot_fields = ("robot",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "pulleys": {**INDEX_LIST, "minItems": 2},
+                             "normal": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+                             "sigma": SIGMA},
+              "required": ["robot", "pulleys", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_cables(spec, "pulleys", check_cdpr(spec, scope))
+        if "normal" not in spec.data and len(spec["pulleys"]) < 4:
+            raise spec.error("pulleys", "without a known `normal`, coplanarity needs at least 4 pulleys")
+        if "normal" in spec.data and np.linalg.norm(spec["normal"]) == 0:
+            raise spec.error("normal", "expected a non-zero normal vector")
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        keys = [ctx.parameter(robot, "pulley", i) for i in spec["pulleys"]]
+        noise = ctx.noise([spec["sigma"]], spec)
+        if "normal" in spec.data:
+            n = np.asarray(spec["normal"], float)
+            n /= np.linalg.norm(n)
+            for kj in keys[1:]:
+                ctx.add(gtsam.CustomFactor(noise, [keys[0], kj], partial(_normal_error, n)), spec)
+        else:
+            for kk in keys[3:]:
+                ctx.add(gtsam.CustomFactor(noise, keys[:3] + [kk], _plane_error), spec)
+
+    @classmethod
+    def example(cls, rng):
+        pts = [rng.normal(size=3) * 3 for _ in range(3)]
+        u, v = pts[1] - pts[0], pts[2] - pts[0]
+        pts.append(pts[0] + 0.3 * u + 0.6 * v)  # on the plane
+        values = gtsam.Values()
+        for k, p in enumerate(pts):
+            values.insert(k, p)
+        return FactorExample(gtsam.CustomFactor(gaussian([0.01]), [0, 1, 2, 3], _plane_error), values)
+
+
+FACTOR_TYPES = [CableLength, ElasticCableLength, PulleyDistance, PulleysCoplanar]

@@ -1,0 +1,77 @@
+"""The `cdpr` robot model: a cable-driven parallel robot with n cables.
+
+Model keys of the description (besides frames, sensors, parameters):
+
+    model: cdpr
+    cables:
+      attachments: [[x, y, z], ...]   # b_i: attachment points in the end-effector frame (m)
+      stiffness_EA: 2.0e4             # axial stiffness E*A (N); absent: rigid cables
+      weight_per_length: 0.10         # cable weight per metre g_c (N/m); absent: massless
+    end_effector:
+      mass: 2.5                       # kg
+      com: [0, 0, -0.05]              # centre of mass in the end-effector frame (m)
+
+Calibration parameters it requires: `pulley` (point3, one per cable: a_i, the point where cable
+i leaves its pulley, base frame) and `offset` (scalar, one per cable: l0_i, encoder reading minus
+cable length, m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fusionkit import RobotModel
+from fusionkit.robots.description import RobotDescription
+
+VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+
+
+@dataclass(frozen=True)
+class CableRobot:
+    """Geometry and physics of a CDPR read from a validated description."""
+
+    attachments: np.ndarray  # (n, 3) b_i in the end-effector frame
+    stiffness_EA: float | None
+    weight_per_length: float | None
+    mass: float | None
+    com: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.attachments)
+
+
+def cable_robot(desc: RobotDescription) -> CableRobot:
+    cables, ee = desc.extra["cables"], desc.extra.get("end_effector", {})
+    return CableRobot(np.asarray(cables["attachments"], float), cables.get("stiffness_EA"),
+                      cables.get("weight_per_length"), ee.get("mass"), np.asarray(ee.get("com", [0, 0, 0]), float))
+
+
+class CdprModel(RobotModel):
+    name = "cdpr"
+    summary = "cable-driven parallel robot: pulleys a_i, attachments b_i, encoder offsets l0_i, EA, mass"
+    schema = {"type": "object",
+              "properties": {
+                  "cables": {"type": "object",
+                             "properties": {"attachments": {"type": "array", "items": VEC3, "minItems": 1},
+                                            "stiffness_EA": {"type": "number", "exclusiveMinimum": 0},
+                                            "weight_per_length": {"type": "number", "exclusiveMinimum": 0}},
+                             "required": ["attachments"], "additionalProperties": False},
+                  "end_effector": {"type": "object",
+                                   "properties": {"mass": {"type": "number", "exclusiveMinimum": 0},
+                                                  "com": VEC3},
+                                   "additionalProperties": False}},
+              "required": ["cables"], "additionalProperties": False}
+
+    def check_description(self, desc: RobotDescription) -> None:
+        """`pulley` and `offset` must exist with one value per cable."""
+        n = len(desc.extra["cables"]["attachments"])
+        for name, vartype in (("pulley", "point3"), ("offset", "scalar")):
+            param = desc.parameters.get(name)
+            if param is None:
+                raise desc.error(("parameters",), f"a cdpr needs parameter {name!r} ({vartype}, {n} values)")
+            if param.vartype.name != vartype or param.count != n or not param.indexed:
+                raise desc.error(("parameters", name), f"expected a {vartype} with `values:` for each of the "
+                                 f"{n} cables; got {param.count} {param.vartype.name} value(s)")
