@@ -114,6 +114,10 @@ class FactorType(Component):
     def build(self, ctx: "BuildContext", spec: Spec) -> None:
         """Add this entry's factors to the graph through `ctx`."""
 
+    def diagnose(self, ctx: "BuildContext", spec: Spec) -> None:
+        """Optional: after initialization, examine the data (e.g. observability) and report it
+        with `ctx.add_diagnostic(spec.label, {...})`."""
+
     @classmethod
     @abstractmethod
     def example(cls, rng: "np.random.Generator"):

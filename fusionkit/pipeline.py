@@ -84,6 +84,8 @@ def build_problem(config: RunConfig, streams: dict[str, Stream]) -> Problem:
         reg.get("factor_types", spec.type)().build(ctx, spec)
     for spec in config.initializers:
         reg.get("initializers", spec.type)().initialize(ctx, spec)
+    for spec in config.factors:
+        reg.get("factor_types", spec.type)().diagnose(ctx, spec)
     return ctx.problem()
 
 
@@ -164,6 +166,20 @@ def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth:
     return ev
 
 
+def residuals_by_entry(problem: Problem, final: gtsam.Values) -> dict[str, dict]:
+    """RMS of the unwhitened residual (the factor's own units) of each entry, at the initial
+    values and at the solution: e.g. the cable-length residual before and after refinement."""
+    groups: dict[str, list] = {}
+    for r in problem.records:
+        groups.setdefault(r.label, []).append(r.factor)
+    out = {}
+    for label, factors in groups.items():
+        rms = [float(np.sqrt(np.mean(np.concatenate([np.atleast_1d(f.unwhitenedError(v)) for f in factors]) ** 2)))
+               for v in (problem.initial, final)]
+        out[label] = {"factors": len(factors), "initial_rms": rms[0], "final_rms": rms[1]}
+    return out
+
+
 def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = None) -> RunResult:
     """Run everything short of writing files."""
     timings = {}
@@ -181,6 +197,7 @@ def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = 
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
     parameters = _parameters(problem, solution.values, solution.covariances)
     evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)
+    evaluation["residuals_by_entry"] = residuals_by_entry(problem, solution.values)
     return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
                      timings)
 

@@ -71,6 +71,7 @@ def cmd_run(args) -> int:
 def cmd_validate(args) -> int:
     from ..config.loader import load_config
     from ..pipeline import build_problem, read_sources
+    from ..report.summary import diagnostic_lines
     from ..solve.checks import check_constrained
 
     config = load_config(args.config, args.set)
@@ -88,6 +89,8 @@ def cmd_validate(args) -> int:
     for label, n in counts.items():
         print(f"  {label}: {n} factors")
     print(f"  {problem.initial.size()} variables, {len(problem.records)} factors; every variable is constrained")
+    for line in diagnostic_lines(problem.diagnostics):
+        print(line)
     for note in problem.notes:
         print(f"  note: {note}")
     return 0

@@ -27,25 +27,50 @@ def _read_text(path: Path) -> str:
         raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
 
 
+def _is_data(row: list[str]) -> bool:
+    """A CSV row that is neither blank nor a `#` comment."""
+    return bool(row) and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
+
+
+def _check_header(path: Path, line: int, header: list[str]) -> None:
+    if header[0] != "t":
+        raise DataError(f"{path}:{line}: first column is {header[0]!r}; expected 't' (time in seconds), "
+                        f"header was {','.join(header)}")
+    repeated = sorted({h for h in header if header.count(h) > 1 or not h})
+    if repeated:
+        raise DataError(f"{path}:{line}: column name(s) {', '.join(map(repr, repeated))} empty or repeated; "
+                        f"expected distinct names, header was {','.join(header)}")
+
+
+def read_csv_header(path: Path) -> tuple[str, ...]:
+    """The column names after `t`, reading no further than the header row (to validate before reading data)."""
+    try:
+        with path.open(encoding="utf-8-sig", newline="") as f:
+            reader = csv.reader(f)
+            for row in reader:
+                if _is_data(row):
+                    header = [h.strip() for h in row]
+                    _check_header(path, reader.line_num, header)
+                    return tuple(header[1:])
+    except (OSError, UnicodeDecodeError):
+        _read_text(path)  # raises the located, worded error
+        raise
+    raise DataError(f"{path}: empty file; expected a header row starting with 't'")
+
+
 def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
     """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
     text = _read_text(path)
     reader = csv.reader(io.StringIO(text))
     rows, lines = [], []  # data rows and their line numbers (comments and blank lines are skipped)
     for row in reader:
-        if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#"):
+        if _is_data(row):
             rows.append(row)
             lines.append(reader.line_num)
     if not rows:
         raise DataError(f"{path}: empty file; expected a header row starting with 't'")
     header = [h.strip() for h in rows[0]]
-    if header[0] != "t":
-        raise DataError(f"{path}:{lines[0]}: first column is {header[0]!r}; expected 't' (time in seconds), "
-                        f"header was {','.join(header)}")
-    repeated = sorted({h for h in header if header.count(h) > 1 or not h})
-    if repeated:
-        raise DataError(f"{path}:{lines[0]}: column name(s) {', '.join(map(repr, repeated))} empty or repeated; "
-                        f"expected distinct names, header was {','.join(header)}")
+    _check_header(path, lines[0], header)
     missing = [c for c in required if c not in header]
     if missing:
         raise DataError(f"{path}:{lines[0]}: missing column(s) {', '.join(missing)}; header has "

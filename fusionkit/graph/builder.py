@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import Any, Callable
 
 import gtsam
 import numpy as np
@@ -54,6 +55,8 @@ class Problem:
     states: dict[str, StateSet]
     key_time: dict[int, float]
     notes: list[str] = field(default_factory=list)
+    diagnostics: dict[str, dict] = field(default_factory=dict)
+    plots: dict[str, Callable[[Path], None]] = field(default_factory=dict)
     _graph: gtsam.NonlinearFactorGraph | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
@@ -76,6 +79,8 @@ class BuildContext:
         self.initial = gtsam.Values()
         self.key_time: dict[int, float] = {}
         self.notes: list[str] = []
+        self.diagnostics: dict[str, dict] = {}
+        self.plots: dict[str, Callable[[Path], None]] = {}
         self.states: dict[str, StateSet] = {}
         for name, setup in config.robots.items():
             if setup.states:
@@ -188,4 +193,15 @@ class BuildContext:
         return a
 
     def problem(self) -> Problem:
-        return Problem(self.records, self.initial, self.keys, self.states, self.key_time, self.notes)
+        return Problem(self.records, self.initial, self.keys, self.states, self.key_time, self.notes,
+                       self.diagnostics, self.plots)
+
+    # --- diagnostics and figures -------------------------------------------------------------
+    def add_diagnostic(self, label: str, report: dict) -> None:
+        """A plugin's finding about the data (e.g. observability), for report.json and `validate`.
+        `report["verdict"]` (a list of sentences), if present, is printed for the user."""
+        self.diagnostics[label] = report
+
+    def add_plot(self, name: str, draw: Callable[[Path], None]) -> None:
+        """A figure written as plots/<name>.png with the outputs: `draw(path)` saves it."""
+        self.plots[name] = draw

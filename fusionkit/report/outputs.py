@@ -88,6 +88,7 @@ def report_document(result: RunResult) -> dict:
         "timings_s": result.timings,
         "parameters": params,
         "evaluation": result.evaluation,
+        "diagnostics": problem.diagnostics,
         "notes": problem.notes,
     }
 

@@ -58,3 +58,5 @@ def write_plots(result: RunResult, folder: Path) -> None:
     if result.trajectories:
         plot_trajectories(result, folder / "trajectory.png")
     plot_residuals(result, folder / "residuals.png")
+    for name, draw in result.problem.plots.items():
+        draw(folder / f"{name}.png")

@@ -47,6 +47,12 @@ def summary_text(result: RunResult) -> str:
             c = ev["consistency_percent"]
             within = ", ".join(f"{ax} {c[ax]['1sigma']:.0f}/{c[ax]['2sigma']:.0f}/{c[ax]['3sigma']:.0f}%" for ax in c)
             lines.append(f"    inside 1/2/3 sigma: {within} (ideal 68/95/99.7%)")
+    lines += diagnostic_lines(result.problem.diagnostics)
     for note in result.problem.notes:
         lines.append(f"  note: {note}")
     return "\n".join(lines)
+
+
+def diagnostic_lines(diagnostics: dict[str, dict]) -> list[str]:
+    """The plain-language verdicts plugins attached to their diagnostics."""
+    return [f"  {label}: {sentence}" for label, d in diagnostics.items() for sentence in d.get("verdict", [])]

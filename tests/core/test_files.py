@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusionkit.data.association import interpolate_poses, nearest
-from fusionkit.data.files import read_csv_stream, read_tum, write_csv_stream, write_tum
+from fusionkit.data.association import interpolate_poses, nearest, segment_ids
+from fusionkit.data.files import read_csv_header, read_csv_stream, read_tum, write_csv_stream, write_tum
 from fusionkit.data.stream import POSE_COLUMNS, Stream, check_samples
 from fusionkit.errors import DataError
 
@@ -121,6 +121,26 @@ def test_unreadable_files_say_what_is_wrong(tmp_path):
     with pytest.raises(DataError) as err:
         read_csv_stream(path, "a")
     assert str(err.value) == f"{path}:2: cannot read: byte 4 is not UTF-8 text; expected a text file"
+
+
+def test_csv_header_alone(tmp_path):
+    path = write(tmp_path, "a.csv", "\ufeff# exported by a logger\n\n t , ax,ay\n0,1\n".encode("utf-8"))
+    assert read_csv_header(path) == ("ax", "ay")  # data rows are not read (the short row is not noticed)
+    path = write(tmp_path, "b.csv", "# c\nx,y\n")
+    with pytest.raises(DataError) as err:
+        read_csv_header(path)
+    assert str(err.value) == f"{path}:2: first column is 'x'; expected 't' (time in seconds), header was x,y"
+    path = write(tmp_path, "c.csv", "# only comments\n")
+    with pytest.raises(DataError) as err:
+        read_csv_header(path)
+    assert str(err.value) == f"{path}: empty file; expected a header row starting with 't'"
+    path = write(tmp_path, "d.csv", b"# fine\n\xff,t\n")
+    with pytest.raises(DataError) as err:
+        read_csv_header(path)
+    assert str(err.value) == f"{path}:2: cannot read: byte 7 is not UTF-8 text; expected a text file"
+    with pytest.raises(DataError) as err:
+        read_csv_header(tmp_path / "none.csv")
+    assert str(err.value) == f"{tmp_path / 'none.csv'}: file not found"
 
 
 def test_csv_round_trip(tmp_path):
@@ -248,9 +268,10 @@ def test_interpolate_poses_linear_position_and_slerp_rotation():
 def test_interpolate_poses_drops_queries_across_a_gap():
     t = np.array([0.0, 1.0, 5.0])
     poses = np.array([[0, 0, 0, 0, 0, 0, 1], [1, 0, 0, 0, 0, 0, 1], [5, 0, 0, 0, 0, 0, 1]])
-    inside, out = interpolate_poses(t, poses, np.array([0.5, 1.0, 3.0, 4.5]), max_gap=2.0)
-    np.testing.assert_array_equal(inside, [True, True, False, False])
-    np.testing.assert_allclose(out[:, 0], [0.5, 1.0], atol=1e-12)
+    inside, out = interpolate_poses(t, poses, np.array([0.5, 1.0, 3.0, 4.5, 5.0]), max_gap=2.0)
+    # 3.0 and 4.5 lie inside the 4 s gap; 1.0 and 5.0 fall on samples, so they need no interpolation
+    np.testing.assert_array_equal(inside, [True, True, False, False, True])
+    np.testing.assert_allclose(out[:, 0], [0.5, 1.0, 5.0], atol=1e-12)
     inside, out = interpolate_poses(t, poses, np.array([0.5, 1.0, 3.0, 4.5]))
     np.testing.assert_array_equal(inside, [True, True, True, True])
     np.testing.assert_allclose(out[:, 0], [0.5, 1.0, 3.0, 4.5], atol=1e-12)
@@ -261,3 +282,9 @@ def test_interpolate_poses_single_sample():
     inside, out = interpolate_poses(np.array([2.0]), poses, np.array([1.0, 2.0, 3.0]))
     np.testing.assert_array_equal(inside, [False, True, False])
     np.testing.assert_array_equal(out, poses)
+
+
+def test_segment_ids_split_at_gaps():
+    t = np.array([0.0, 1.0, 5.0, 6.0, 6.5])
+    np.testing.assert_array_equal(segment_ids(t, np.array([0.5, 3.0, 5.5, 6.2, 9.0]), max_gap=2.0), [0, 0, 1, 1, 1])
+    np.testing.assert_array_equal(segment_ids(t, np.array([0.5, 3.0]), max_gap=None), [0, 0])
