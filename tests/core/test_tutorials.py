@@ -43,3 +43,10 @@ def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
             assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.05
         isam = json.loads((tmp_path / "out/sim_isam2/report.json").read_text())
         assert isam["solver"]["step_latency_ms"]["steps"] >= 600
+    if md.stem == "multirobot":
+        for folder in ("multirobot", "two_isam2"):
+            report = json.loads((tmp_path / "out" / folder / "report.json").read_text())
+            err = report["evaluation"]["parameters"]["b"]["base_in_a"]["abs_error"][0]
+            assert err < 0.1, (folder, err)  # tangent-space norm: rad and m together
+            assert report["evaluation"]["trajectories"]["b"]["ate_rmse_m"] < 0.12
+        assert (tmp_path / "out/two/data/a_sees_b.tum").is_file()
