@@ -71,6 +71,7 @@ class CheckScope:
         self.robots = robots
         self.stream_columns = stream_columns
         self.states = states or {}
+        self.stream_origins: dict[str, str] = {}  # stream -> where it comes from, for messages
 
     def require_states(self, spec: Spec, robot_key: str, state_type: str | None = None) -> None:
         """Error unless robot `spec[robot_key]` has states (of `state_type`: pose3 or pose2)."""
@@ -99,8 +100,9 @@ class CheckScope:
         have = self.stream_columns[spec[stream_key]]
         missing = [c for c in columns if c not in have]
         if missing:
-            raise spec.error(stream_key, f"stream {spec[stream_key]!r} lacks column(s) "
-                             f"{', '.join(missing)}; it has {', '.join(have)}")
+            origin = self.stream_origins.get(spec[stream_key])
+            raise spec.error(stream_key, f"stream {spec[stream_key]!r}{f' ({origin})' if origin else ''} lacks "
+                             f"column(s) {', '.join(missing)}; it has {', '.join(have) or '(none)'}")
 
 
 class FactorType(Component):

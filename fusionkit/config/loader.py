@@ -139,6 +139,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
             if sname in streams:
                 raise spec.error(None, f"stream {sname!r} is already provided by sources[{stream_source[sname]}]")
             streams[sname], stream_source[sname] = cols, i
+            scope.stream_origins[sname] = f"sources[{i}]" + (f": {spec['path']}" if "path" in spec.data else "")
     scope.stream_columns = streams
 
     for name, setup in robots.items():

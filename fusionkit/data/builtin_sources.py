@@ -9,7 +9,7 @@ import numpy as np
 from .. import hookimpl
 from ..components import SourceOutput, Source, Spec
 from ..errors import DataError
-from .files import read_csv_stream, read_tum
+from .files import read_csv_header, read_csv_stream, read_tum
 from .stream import POSE_COLUMNS
 
 NAME = {"type": "string", "pattern": "^[A-Za-z_][A-Za-z0-9_./-]*$"}
@@ -20,15 +20,14 @@ def resolve(base_dir: Path, path: str) -> Path:
     return p if p.is_absolute() else base_dir / p
 
 
-def _csv_header(path: Path) -> tuple[str, ...]:
-    try:
-        with path.open(encoding="utf-8") as f:
-            for line in f:
-                if line.strip() and not line.lstrip().startswith("#"):
-                    return tuple(h.strip() for h in line.strip().split(",")[1:])
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.__class__.__name__})") from None
-    return ()
+def existing_file(spec: Spec, base_dir: Path, what: str = "file") -> Path:
+    """The entry's `path`, resolved; a located error if it is missing or a folder."""
+    path = resolve(base_dir, spec["path"])
+    if path.is_dir():
+        raise spec.error("path", f"{path} is a folder; expected a {what}")
+    if not path.is_file():
+        raise spec.error("path", f"{what} not found: {path}")
+    return path
 
 
 class CsvSource(Source):
@@ -39,10 +38,8 @@ class CsvSource(Source):
               "required": ["name", "path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
-        path = resolve(base_dir, spec["path"])
-        if not path.is_file():
-            raise spec.error("path", f"file not found: {path}")
-        return {spec["name"]: tuple(spec.get("columns") or _csv_header(path))}
+        path = existing_file(spec, base_dir)
+        return {spec["name"]: tuple(spec.get("columns") or read_csv_header(path))}
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
         stream = read_csv_stream(resolve(base_dir, spec["path"]), spec["name"], tuple(spec.get("columns", ())))
@@ -56,9 +53,7 @@ class TumSource(Source):
               "required": ["name", "path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
-        path = resolve(base_dir, spec["path"])
-        if not path.is_file():
-            raise spec.error("path", f"file not found: {path}")
+        existing_file(spec, base_dir)
         return {spec["name"]: POSE_COLUMNS}
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:

@@ -8,11 +8,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from ..errors import FusionkitError
+
 
 @contextmanager
 def atomic_directory(out: Path) -> Iterator[Path]:
     """Yield a fresh folder beside `out`; on success it becomes `out`, on error it vanishes."""
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise FusionkitError(f"{out}: exists and is not a folder; choose another output folder")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

@@ -396,8 +396,8 @@ def test_csv_with_wrong_columns_for_the_factor(ds, out, capsys):
     rewrite(ds / "data" / "mocap.csv", "t,x,y,z,qx,qy,qz,qw", "t,x,y,z,qx,qy,qz,w")
     # the factor needs pose columns: the stream's columns are known from the CSV header before reading data
     assert fails(capsys, run(config, out), out=out) == (
-        f"{config}:{line_of(config, 'stream: mocap')}: factors[1].stream: stream 'mocap' lacks column(s) qw; "
-        "it has x, y, z, qx, qy, qz, w")
+        f"{config}:{line_of(config, 'stream: mocap')}: factors[1].stream: stream 'mocap' (sources[1]: "
+        "data/mocap.csv) lacks column(s) qw; it has x, y, z, qx, qy, qz, w")
 
 
 def test_csv_missing_declared_columns(ds, out, capsys):

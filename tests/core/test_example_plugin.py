@@ -145,7 +145,7 @@ def test_contract_passes_and_a_broken_jacobian_is_caught(installed):
 
 @pytest.mark.parametrize("override, message", [
     ("factors.2.bias=nope", "factors[2].bias: robot 'drone' has no parameter 'nope'"),
-    ("factors.2.stream=gnss", "factors[2].stream: stream 'gnss' lacks column(s) height"),
+    ("factors.2.stream=gnss", "factors[2].stream: stream 'gnss' (sources[0]) lacks column(s) height"),
 ])
 def test_check_errors_are_located(installed, override, message):
     proc = run([*_fusionkit_cmd(), "validate", str(DEMO), "--set", override], installed)

@@ -1,0 +1,374 @@
+"""`cable.cdpr`: synthetic datasets of a suspended cable-driven parallel robot (spec cable_rigid.md,
+ARAS-CAM: 4 cables, monocular camera on the end-effector, 750 poses at 30 Hz).
+
+The geometry comes from a shipped description (robots/<robot>.yaml). The TRUE pulleys are the
+nominal ones perturbed by `pulley_error` per axis; the encoders are relative and zeroed at the
+home pose, so the true offsets make the noiseless readings 0 there (l0_i = -(1 - T_i/EA) l*_i at
+home). The trajectory starts at rest at the home pose (x = y = 0, identity orientation), moves
+along x, then y, then z (what the Monte-Carlo self-calibration needs: line -> shell, second axis
+-> ring, third -> cluster), then a smooth mixed 3-D motion over the workspace with a few degrees
+of roll/pitch/yaw.
+
+`motion: dynamic` (sequence 01): the commanded, quasi-static trajectory gives the cable lengths
+the encoders read and the tensions; the true end-effector additionally swings horizontally like a
+damped pendulum driven by the commanded accelerations (peak deviation `swing_amplitude`), which
+the kinematics cannot see but the VO (worse by `dynamic_vo_factor`) does.
+
+Streams: `vo` (scaled monocular VO, eq. 4.3), `lengths` (l0..l{n-1}, eq. 4.1/4.2), `tensions`
+(T0..T{n-1} in N, static equilibrium, quantized), `mocap` (noisy true poses, base frame).
+Everything but the per-pose gtsam conversions and the tiny per-pose NNLS is vectorized.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import yaml
+from scipy.optimize import brentq, nnls
+from scipy.signal import cont2discrete, lfilter
+from scipy.spatial.transform import Rotation
+
+from fusionkit import Simulator, SourceOutput
+from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
+from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import noisy, odometry, sample_times
+
+ROBOTS_DIR = Path(__file__).resolve().parents[2] / "robots"
+GRAVITY = 9.81
+ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
+
+POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+NONNEG = {"type": "number", "minimum": 0}
+
+# Workspace and trajectory shape (fractions are of the distance from home to the pulley
+# footprint's bounding box, horizontally, and of the free height above home, vertically).
+AXIS_FRACTION = 0.4      # amplitude of the single-axis segments
+MIXED_FRACTION = 0.55    # amplitude of the mixed 3-D segment
+MIN_CLEARANCE = 0.5      # attachments stay at least this far below the lowest pulley (m)
+ORIENTATION_DEG = (2.0, 2.0, 4.0)  # roll, pitch, yaw amplitude in the mixed segment
+
+
+@dataclass(frozen=True)
+class Geometry:
+    pulleys: np.ndarray            # (n, 3) a_i, base frame
+    attachments: np.ndarray        # (n, 3) b_i, end-effector frame
+    stiffness_EA: float | None
+    mass: float
+    com: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.attachments)
+
+
+@cache
+def _shipped(robot: str) -> str:
+    return (ROBOTS_DIR / f"{robot}.yaml").read_text()
+
+
+def shipped_description(robot: str) -> dict:
+    """The description dict of robots/<robot>.yaml (a fresh copy)."""
+    return yaml.safe_load(_shipped(robot))
+
+
+def nominal_geometry(desc: dict) -> Geometry:
+    cables, ee = desc["cables"], desc.get("end_effector", {})
+    return Geometry(np.asarray(desc["parameters"]["pulley"]["values"], float),
+                    np.asarray(cables["attachments"], float), cables.get("stiffness_EA"),
+                    float(ee.get("mass", 1.0)), np.asarray(ee.get("com", [0.0, 0.0, 0.0]), float))
+
+
+# --------------------------------------------------------------------------------------- kinematics
+def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths l*_i (N, n) of eq. 4.1 and the lever arms R b_i (N, n, 3) of each attachment."""
+    arms = np.einsum("kij,cj->kci", rot, geo.attachments)
+    d = geo.pulleys[None] - (pos[:, None, :] + arms)
+    return np.linalg.norm(d, axis=2), arms
+
+
+def wrench_matrix(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
+    """(N, 6, n): column i is the wrench [u_i; R b_i x u_i] (about the end-effector origin, base
+    frame) of a unit tension in cable i, u_i the unit vector from attachment to pulley."""
+    arms = np.einsum("kij,cj->kci", rot, geo.attachments)
+    d = geo.pulleys[None] - (pos[:, None, :] + arms)
+    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    return np.concatenate([u, np.cross(arms, u)], axis=2).transpose(0, 2, 1)
+
+
+def gravity_wrench(rot: np.ndarray, geo: Geometry) -> np.ndarray:
+    """(N, 6): weight m g at the centre of mass, about the end-effector origin, base frame."""
+    f = np.array([0.0, 0.0, -geo.mass * GRAVITY])
+    lever = rot @ geo.com
+    return np.column_stack([np.broadcast_to(f, lever.shape), np.cross(lever, f)])
+
+
+def static_tensions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
+    """(N, n) non-negative tensions solving J^T T = -w_gravity in the least-squares sense."""
+    A, w = wrench_matrix(pos, rot, geo), gravity_wrench(rot, geo)
+    return np.array([nnls(Ak, -wk)[0] for Ak, wk in zip(A, w)])
+
+
+def encoder_readings(lengths: np.ndarray, tensions: np.ndarray, offsets: np.ndarray,
+                     stiffness_EA: float | None) -> np.ndarray:
+    """Noiseless z_i = (1 - T_i/EA) l*_i + l0_i (eq. 4.2), or l*_i + l0_i without stiffness (4.1)."""
+    stretch = 0.0 if stiffness_EA is None else tensions / stiffness_EA
+    return (1.0 - stretch) * lengths + offsets
+
+
+# --------------------------------------------------------------------------------------- trajectory
+def home_position(desc: dict) -> np.ndarray:
+    """x = y = 0 at a height where the nominal cables are taut: if the description's nominal
+    offsets are negative (relative encoders zeroed at home: l0 = -length at home), the height at
+    which the mean nominal length equals -mean(offset); else half way up to the pulleys. Always at
+    least MIN_CLEARANCE below the lowest pulley."""
+    geo = nominal_geometry(desc)
+    top = geo.pulleys[:, 2].min() - geo.attachments[:, 2].max() - MIN_CLEARANCE
+    offsets = np.asarray(desc["parameters"]["offset"].get("values", [0.0]), float)
+
+    def mean_length(z: float) -> float:
+        return float(cable_vectors(np.array([[0.0, 0.0, z]]), np.eye(3)[None], geo)[0].mean())
+
+    z = 0.5 * top
+    if np.all(offsets < 0):
+        target = -offsets.mean()
+        low = top - 10 * target
+        if (mean_length(top) - target) * (mean_length(low) - target) < 0:
+            z = brentq(lambda zz: mean_length(zz) - target, low, top, xtol=1e-9)
+    return np.array([0.0, 0.0, min(z, top)])
+
+
+def _quintic(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk blend 0 -> 1 on s in [0, 1] (zero velocity and acceleration at both ends)."""
+    s = np.clip(s, 0.0, 1.0)
+    return s ** 3 * (10 - 15 * s + 6 * s ** 2)
+
+
+def _waypoints(t: np.ndarray, times: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Piecewise minimum-jerk interpolation through `points` (m, d) at `times` (m,); held outside."""
+    seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    s = _quintic((t - times[seg]) / (times[seg + 1] - times[seg]))
+    return points[seg] + s[:, None] * (points[seg + 1] - points[seg])
+
+
+def _window(s: np.ndarray, ramp: float = 0.15) -> np.ndarray:
+    """Smooth 0 -> 1 -> 0 envelope on s in [0, 1] with minimum-jerk ramps of `ramp` at both ends."""
+    return _quintic(s / ramp) * _quintic((1.0 - s) / ramp)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The commanded trajectory: times, positions (N, 3), rotations (N, 3, 3), segment bounds."""
+
+    t: np.ndarray
+    pos: np.ndarray
+    rot: np.ndarray
+    segments: dict[str, tuple[float, float]]
+    amplitude: dict[str, np.ndarray]
+
+
+def workspace_extent(desc: dict, home: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Room from home to the pulley footprint (x, y) and to the clearance below the pulleys /
+    half the home height (z): (room in the + direction, room in the - direction), each (3,)."""
+    geo = nominal_geometry(desc)
+    lo, hi = geo.pulleys[:, :2].min(axis=0), geo.pulleys[:, :2].max(axis=0)
+    top = geo.pulleys[:, 2].min() - geo.attachments[:, 2].max() - MIN_CLEARANCE
+    plus = np.array([hi[0] - home[0], hi[1] - home[1], top - home[2]])
+    minus = np.array([home[0] - lo[0], home[1] - lo[1], 0.5 * home[2]])
+    return plus, minus
+
+
+def commanded_trajectory(t: np.ndarray, desc: dict) -> Plan:
+    home = home_position(desc)
+    plus, minus = workspace_extent(desc, home)
+    room = np.minimum(plus, minus)
+    duration = float(t[-1]) + (t[1] - t[0] if len(t) > 1 else 0.0)
+    rest = min(0.5, 0.02 * duration)
+    axis_len = 0.18 * duration
+    bounds, start = {}, rest
+    for axis in "xyz":
+        bounds[axis] = (start, start + axis_len)
+        start += axis_len
+    bounds["mixed"] = (start, duration)
+    # single-axis segments: home -> +A -> -A -> home along one axis, minimum-jerk between waypoints
+    axis_amp = AXIS_FRACTION * room
+    times, points = [0.0], [home]
+    for i, axis in enumerate("xyz"):
+        t0, t1 = bounds[axis]
+        step = np.zeros(3)
+        step[i] = axis_amp[i]
+        for frac, p in ((0.25, home + step), (0.75, home - step), (1.0, home)):
+            times.append(t0 + frac * (t1 - t0))
+            points.append(p)
+    pos = _waypoints(t, np.array(times), np.array(points))
+    # mixed segment: windowed Lissajous figure over the workspace, a few degrees of rotation
+    m0, m1 = bounds["mixed"]
+    mixed_amp = MIXED_FRACTION * room
+    tau = np.clip((t - m0) / (m1 - m0), 0.0, 1.0)
+    inside = (t >= m0)[:, None]
+    env = _window(tau)[:, None]
+    cycles = np.array([2.0, 3.0, 2.5])
+    phase = np.array([0.0, 0.5 * np.pi, 0.0])
+    pos = pos + inside * env * mixed_amp * np.sin(2 * np.pi * cycles * tau[:, None] + phase)
+    ang = np.radians(ORIENTATION_DEG) * env * np.sin(2 * np.pi * np.array([1.5, 2.0, 1.0]) * tau[:, None]
+                                                     + np.array([0.0, 1.0, 0.0])) * inside
+    rot = Rotation.from_euler("ZYX", ang[:, ::-1]).as_matrix()  # ang columns: roll, pitch, yaw
+    return Plan(t, pos, rot, bounds, {"axis": axis_amp, "mixed": mixed_amp})
+
+
+def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: float,
+                   damping: float) -> np.ndarray:
+    """(N, 3) horizontal deviation of a damped pendulum (natural `frequency` Hz, damping ratio
+    `damping`) driven by the commanded horizontal acceleration, scaled to a peak of `amplitude`."""
+    dt = float(t[1] - t[0])
+    acc = np.gradient(np.gradient(pos[:, :2], dt, axis=0), dt, axis=0)
+    w = 2 * np.pi * frequency
+    num, den, _ = cont2discrete(([-1.0], [1.0, 2 * damping * w, w * w]), dt, method="bilinear")
+    e = lfilter(np.ravel(num), den, acc, axis=0)
+    peak = np.linalg.norm(e, axis=1).max()
+    out = np.zeros_like(pos)
+    if peak > 0:
+        out[:, :2] = e * (amplitude / peak)
+    return out
+
+
+# --------------------------------------------------------------------------------------- simulator
+def _merged(defaults: dict, params: dict) -> dict:
+    """Defaults under params, one level deep (so `--set vo_sigma.rotation=...` keeps translation)."""
+    out = dict(defaults)
+    for k, v in params.items():
+        out[k] = {**defaults[k], **v} if isinstance(v, dict) and isinstance(defaults.get(k), dict) else v
+    return out
+
+
+def _scaled(sigma: dict, factor: float) -> dict:
+    return {k: float(v) * factor for k, v in sigma.items()}
+
+
+class CdprSimulator(Simulator):
+    name = "cable.cdpr"
+    summary = ("suspended CDPR (ARAS-CAM): scaled monocular VO, cable-length encoders, tensions and "
+               "motion capture; smooth or dynamic (swinging) motion along x, y, z, then mixed")
+    schema = {"type": "object",
+              "properties": {"robot": {"enum": ["arascam", "cdpr_small"]},
+                             "motion": {"enum": ["smooth", "dynamic"]},
+                             "duration": POSITIVE, "rate": POSITIVE, "scale": POSITIVE,
+                             "pulley_error": NONNEG,
+                             "vo_sigma": SIGMA, "dynamic_vo_factor": {"type": "number", "minimum": 1},
+                             "encoder_sigma": NONNEG, "tension_resolution": NONNEG, "tension_sigma": NONNEG,
+                             "mocap_sigma": SIGMA, "mocap_every": {"type": "integer", "minimum": 1},
+                             "swing_amplitude": NONNEG, "swing_frequency": POSITIVE,
+                             "swing_damping": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1}},
+              "additionalProperties": False}
+    defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
+                "pulley_error": 0.05,
+                "vo_sigma": {"rotation": 0.002, "translation": 0.002}, "dynamic_vo_factor": 2.5,
+                "encoder_sigma": 0.001, "tension_resolution": 0.25, "tension_sigma": 0.1,
+                "mocap_sigma": {"rotation": 0.002, "translation": 0.001}, "mocap_every": 1,
+                "swing_amplitude": 0.03, "swing_frequency": 0.6, "swing_damping": 0.05}
+
+    def _params(self, params: dict) -> dict:
+        return _merged(self.defaults, params)
+
+    def stream_columns(self, params: dict):
+        n = len(shipped_description(self._params(params)["robot"])["cables"]["attachments"])
+        return {"vo": POSE_COLUMNS, "mocap": POSE_COLUMNS,
+                "lengths": tuple(f"l{i}" for i in range(n)), "tensions": tuple(f"T{i}" for i in range(n))}
+
+    @staticmethod
+    def vo_sigma(params: dict) -> dict:
+        """Per-frame VO noise: worse in dynamic motion by `dynamic_vo_factor`."""
+        factor = params["dynamic_vo_factor"] if params["motion"] == "dynamic" else 1.0
+        return _scaled(params["vo_sigma"], factor)
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        p = self._params(params)
+        desc = shipped_description(p["robot"])
+        nominal = nominal_geometry(desc)
+        t = sample_times(p["duration"], p["rate"])
+        plan = commanded_trajectory(t, desc)
+        true_pulleys = nominal.pulleys + rng.normal(0.0, p["pulley_error"], nominal.pulleys.shape)
+        geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
+
+        # commanded (quasi-static) pose -> tensions and cable lengths the encoders read
+        tension = static_tensions(plan.pos, plan.rot, geo)
+        length, _ = cable_vectors(plan.pos, plan.rot, geo)
+        offsets = -encoder_readings(length[0], tension[0], np.zeros(geo.n), geo.stiffness_EA)
+        z = encoder_readings(length, tension, offsets, geo.stiffness_EA)
+        z = z + rng.normal(0.0, p["encoder_sigma"], z.shape)
+        measured_t = tension + rng.normal(0.0, p["tension_sigma"], tension.shape)
+        if p["tension_resolution"] > 0:
+            measured_t = p["tension_resolution"] * np.round(measured_t / p["tension_resolution"])
+        measured_t = np.maximum(measured_t, 0.0)
+
+        # true pose: commanded (+ the pendulum swing the kinematics cannot see, dynamic motion)
+        true_pos = plan.pos
+        if p["motion"] == "dynamic":
+            true_pos = plan.pos + pendulum_swing(t, plan.pos, p["swing_amplitude"], p["swing_frequency"],
+                                                 p["swing_damping"])
+        quat = Rotation.from_matrix(plan.rot).as_quat()
+        truth_arr = np.column_stack([true_pos, quat])
+        truth = poses_from_array(truth_arr)
+        vo = odometry(truth, self.vo_sigma(p), rng, p["scale"])
+        rows = np.arange(0, len(t), p["mocap_every"])
+        mocap = noisy([truth[i] for i in rows], p["mocap_sigma"], rng)
+
+        n = geo.n
+        streams = {
+            "vo": pose_stream("vo", t, vo, "simulated:vo"),
+            "lengths": Stream("lengths", t, tuple(f"l{i}" for i in range(n)), z, "simulated:lengths"),
+            "tensions": Stream("tensions", t, tuple(f"T{i}" for i in range(n)), measured_t, "simulated:tensions"),
+            "mocap": pose_stream("mocap", t[rows], mocap, "simulated:mocap"),
+        }
+        calibration = {ROBOT_NAME: {"pulley": {"type": "point3", "values": true_pulleys.tolist()},
+                                    "offset": {"type": "scalar", "values": offsets.tolist()},
+                                    "vo_scale": {"type": "scalar", "value": float(p["scale"])}}}
+        return SourceOutput(streams, {ROBOT_NAME: pose_stream(ROBOT_NAME, t, truth_arr, "simulated:truth")},
+                            calibration)
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        """The shipped description with its nominal values. Offsets: the nominal guess a user makes
+        for encoders zeroed at home, -(nominal length at home), to the mm (for arascam that is the
+        file's -2.9; for descriptions with absolute-encoder offsets it replaces them)."""
+        p = self._params(params)
+        desc = shipped_description(p["robot"])
+        geo = nominal_geometry(desc)
+        home = home_position(desc)
+        length, _ = cable_vectors(home[None], np.eye(3)[None], geo)
+        desc["parameters"]["offset"]["values"] = [round(-float(x), 3) for x in length[0]]
+        return {ROBOT_NAME: desc}
+
+    def home_pose(self, params: dict) -> list[float]:
+        """The true home pose [x, y, z, qx, qy, qz, qw]: the zero pose the user picks."""
+        home = home_position(shipped_description(self._params(params)["robot"]))
+        return [float(x) for x in home] + [0.0, 0.0, 0.0, 1.0]
+
+    def initializers(self, params: dict) -> list[dict]:
+        """Initial values. For now dead reckoning of the VO at the description's nominal scale,
+        anchored at the home pose (the first `mocap` sample, which the origin prior also fixes).
+        TODO: the `cable.monte_carlo` initializer (pulleys, offsets and VO scale from the x / y / z
+        segments, no prior values) goes first here once it exists, then dead reckoning at its scale."""
+        return [{"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "anchor": "mocap",
+                 "scale": "vo_scale"}]
+
+    def config(self, params: dict) -> dict:
+        p = self._params(params)
+        vo_sigma = {k: max(v, 1e-4) for k, v in self.vo_sigma(p).items()}
+        cable_sigma = max(p["encoder_sigma"], 1e-4)
+        if p["motion"] == "dynamic":  # the swing the encoders do not see, projected on the cables
+            cable_sigma = float(np.hypot(cable_sigma, 0.5 * p["swing_amplitude"]))
+        return {
+            "robots": {ROBOT_NAME: {"description": f"robots/{ROBOT_NAME}.yaml", "states": {"stream": "vo"}}},
+            "factors": [
+                {"type": "pose.origin", "robot": ROBOT_NAME, "pose": self.home_pose(p),
+                 "sigma": {"rotation": 0.001, "translation": 0.001}},
+                {"type": "pose.scaled_relative", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale",
+                 "sigma": vo_sigma},
+                {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths", "sigma": cable_sigma}],
+            "initializers": self.initializers(p),
+            "solver": {"type": "batch", "method": "lm"}}
+
+
+SIMULATORS = [CdprSimulator]
