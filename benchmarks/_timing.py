@@ -63,3 +63,30 @@ def us(seconds: float) -> str:
 
 def ratio(a: float, b: float) -> str:
     return f"{a / b:.2f}x" if b > 0 else "n/a"
+
+
+def with_big_stack(fn: Callable[[], Any], megabytes: int = 1024) -> Any:
+    """Run fn() in a thread with a large stack and return its result (re-raising its exception).
+
+    GTSAM's recursive Bayes-tree code overflows the default 8 MB main-thread stack on long pose
+    chains (the 100k-state LM solve segfaults with `ulimit -s 8192`); untouched stack pages cost
+    no memory."""
+    import threading
+    out: dict[str, Any] = {}
+
+    def target():
+        try:
+            out["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 - handed back to the caller
+            out["error"] = exc
+
+    old = threading.stack_size(megabytes * 1024 * 1024)
+    try:
+        t = threading.Thread(target=target, name="bench")
+        t.start()
+    finally:
+        threading.stack_size(old)
+    t.join()
+    if "error" in out:
+        raise out["error"]
+    return out["value"]

@@ -118,11 +118,21 @@ def handwritten_graph(odom: np.ndarray, absolute: np.ndarray) -> tuple[gtsam.Non
 
 
 def lm_params() -> gtsam.LevenbergMarquardtParams:
-    """The same settings fusionkit's batch solver uses by default."""
+    """GTSAM's LM with the settings fusionkit's batch LM uses by default (tolerances from
+    fusionkit/solve/batch.py, lambda schedule from fusionkit.solve.levenberg.DampingSettings; when
+    DampingSettings has min/max_diagonal, fusionkit damps lambda * diag(J^T J) like GTSAM's
+    diagonalDamping, whose min/max diagonal defaults 1e-6/1e32 are the same)."""
+    from fusionkit.solve.levenberg import DampingSettings
+    d = DampingSettings()
     p = gtsam.LevenbergMarquardtParams()
     p.setRelativeErrorTol(1e-6)
     p.setAbsoluteErrorTol(1e-9)
     p.setMaxIterations(100)
+    p.setlambdaInitial(d.lambda_initial)
+    p.setlambdaFactor(d.lambda_factor)
+    p.setlambdaUpperBound(d.lambda_upper)
+    p.setlambdaLowerBound(d.lambda_lower)
+    p.setDiagonalDamping(hasattr(d, "min_diagonal"))
     return p
 
 

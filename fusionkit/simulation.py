@@ -36,13 +36,14 @@ def noisy(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator) -> li
 
 def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
              scale: float = 1.0) -> list[gtsam.Pose3]:
-    """Integrated noisy increments starting at identity; translations divided by `scale` (eq. 4.3)."""
-    increments = noisy([a.between(b) for a, b in zip(poses[:-1], poses[1:])], sigma, rng)
+    """Integrated noisy increments starting at identity. Translations are divided by `scale`
+    (eq. 4.3) before the noise is applied, so sigma.translation is in the odometry's own units."""
+    increments = [a.between(b) for a, b in zip(poses[:-1], poses[1:])]
+    scaled = noisy([gtsam.Pose3(d.rotation(), d.translation() / scale) for d in increments], sigma, rng)
     out = [gtsam.Pose3()]
-    for d in increments:
-        out.append(out[-1].compose(gtsam.Pose3(d.rotation(), d.translation() / scale)))
+    for d in scaled:
+        out.append(out[-1].compose(d))
     return out
-
 
 
 def sample_times(duration: float, rate: float) -> np.ndarray:

@@ -21,6 +21,7 @@ def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
     p = gtsam.ISAM2Params()
     p.setRelinearizeThreshold(settings.get("relinearize_threshold", 0.01))
     p.relinearizeSkip = 1
+    p.setFactorization("QR")  # Cholesky declares weakly observed directions (a scale with a loose prior) singular
     return p
 
 

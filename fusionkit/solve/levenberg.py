@@ -4,8 +4,10 @@ Why not `gtsam.LevenbergMarquardtOptimizer`: inside it every Python `CustomFacto
 fresh copy of the whole `Values` (pybind11 copies `const Values&` arguments that have no Python
 owner), so each call costs O(number of variables). Linearizing the graph from Python passes the
 Python-owned `Values` by reference instead. Measured on the quickstart (750 poses, 749 Python
-factors): 0.22 s here vs 0.8 s in GTSAM's optimizer for the same iterates and final cost. The
-damping is GTSAM's: the linearized system plus sqrt(lambda) * I on every variable.
+factors): 0.22 s here vs 0.8 s in GTSAM's optimizer for the same iterates and final cost.
+Damping is Marquardt's (GTSAM's `diagonalDamping`): lambda times the diagonal of the Gauss-Newton
+Hessian, so variables of very different information (poses vs pulleys with mm-level sigmas)
+are damped alike.
 """
 
 from __future__ import annotations
@@ -23,13 +25,30 @@ class DampingSettings:
     lambda_factor: float = 10.0
     lambda_upper: float = 1e5
     lambda_lower: float = 0.0
+    min_diagonal: float = 1e-6
+    max_diagonal: float = 1e32
 
 
-def _damped(linear: gtsam.GaussianFactorGraph, dims: dict[int, int], lam: float) -> gtsam.GaussianFactorGraph:
+def hessian_diagonal(linear: gtsam.GaussianFactorGraph, dims: dict[int, int]) -> dict[int, np.ndarray]:
+    """diag(A^T A) per key, from the sparse Jacobian (columns follow the sorted keys)."""
+    rows, cols, vals = linear.sparseJacobian_()
+    total = sum(dims.values())
+    cols = cols.astype(int) - 1
+    keep = cols < total  # the last column is the right-hand side
+    diag = np.bincount(cols[keep], weights=vals[keep] ** 2, minlength=total)
+    out, start = {}, 0
+    for key in sorted(dims):
+        out[key] = diag[start:start + dims[key]]
+        start += dims[key]
+    return out
+
+
+def _damped(linear: gtsam.GaussianFactorGraph, diagonal: dict[int, np.ndarray], lam: float,
+            settings: DampingSettings) -> gtsam.GaussianFactorGraph:
     damped = linear.clone()
-    root = np.sqrt(lam)
-    for key, dim in dims.items():
-        damped.add(gtsam.JacobianFactor(key, root * np.eye(dim), np.zeros(dim), gtsam.noiseModel.Unit.Create(dim)))
+    for key, d in diagonal.items():
+        root = np.sqrt(lam * np.clip(d, settings.min_diagonal, settings.max_diagonal))
+        damped.add(gtsam.JacobianFactor(key, np.diag(root), np.zeros(len(d)), gtsam.noiseModel.Unit.Create(len(d))))
     return damped
 
 
@@ -48,8 +67,9 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
     lam = damping.lambda_initial if damping else 0.0
     for it in range(1, max_iterations + 1):
         linear = graph.linearize(values)
+        diagonal = hessian_diagonal(linear, dims) if damping else {}
         while True:
-            delta = (_damped(linear, dims, lam) if damping else linear).optimize()
+            delta = (_damped(linear, diagonal, lam, damping) if damping else linear).optimize()
             candidate = values.retract(delta)
             new_cost = graph.error(candidate)
             if damping is None or new_cost <= cost:

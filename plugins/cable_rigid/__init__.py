@@ -5,6 +5,7 @@ from fusionkit import hookimpl
 
 from .factors import FACTOR_TYPES
 from .model import CdprModel
+from .simulator import SIMULATORS
 
 
 @hookimpl
@@ -15,3 +16,8 @@ def register_factor_types():
 @hookimpl
 def register_robot_models():
     return [CdprModel]
+
+
+@hookimpl
+def register_simulators():
+    return SIMULATORS

@@ -76,6 +76,11 @@ class CableLength(FactorType):
                                                               float(zk), noise, mount)
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
+    def diagnose(self, ctx, spec: Spec) -> None:
+        """Observability of each cable's pulley and offset from this trajectory (eq. 4.6/4.7)."""
+        from .observability import diagnose_cable_lengths
+        diagnose_cable_lengths(ctx, spec)
+
     @classmethod
     def example(cls, rng):
         pose = gtsam.Pose3.Expmap(rng.normal(size=6))

@@ -32,7 +32,9 @@ from scipy.signal import cont2discrete, lfilter
 from scipy.spatial.transform import Rotation
 
 from fusionkit import Simulator, SourceOutput
+from fusionkit.config.yamlio import SafeLoader
 from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
+from fusionkit.errors import ConfigError
 from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
 from fusionkit.simulation import noisy, odometry, sample_times
 
@@ -43,10 +45,11 @@ ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.y
 POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 NONNEG = {"type": "number", "minimum": 0}
 
-# Workspace and trajectory shape (fractions are of the distance from home to the pulley
-# footprint's bounding box, horizontally, and of the free height above home, vertically).
-AXIS_FRACTION = 0.4      # amplitude of the single-axis segments
-MIXED_FRACTION = 0.55    # amplitude of the mixed 3-D segment
+# Workspace and trajectory shape: amplitudes are fractions of the room from home to the pulley
+# footprint's bounding box (x, y) and to the clearance below the pulleys / half the home height (z).
+AXIS_FRACTION = 0.6      # single-axis segments
+MIXED_FRACTION = 0.4     # mixed 3-D segment (ARAS-CAM: more and a cable goes slack in the low corners)
+MAX_AMPLITUDE = 2.0      # m: large robots keep moderate speeds (lengthen `duration` to go slower)
 MIN_CLEARANCE = 0.5      # attachments stay at least this far below the lowest pulley (m)
 ORIENTATION_DEG = (2.0, 2.0, 4.0)  # roll, pitch, yaw amplitude in the mixed segment
 
@@ -71,7 +74,7 @@ def _shipped(robot: str) -> str:
 
 def shipped_description(robot: str) -> dict:
     """The description dict of robots/<robot>.yaml (a fresh copy)."""
-    return yaml.safe_load(_shipped(robot))
+    return yaml.load(_shipped(robot), Loader=SafeLoader)
 
 
 def nominal_geometry(desc: dict) -> Geometry:
@@ -193,8 +196,8 @@ def commanded_trajectory(t: np.ndarray, desc: dict) -> Plan:
         start += axis_len
     bounds["mixed"] = (start, duration)
     # single-axis segments: home -> +A -> -A -> home along one axis, minimum-jerk between waypoints
-    axis_amp = AXIS_FRACTION * room
-    times, points = [0.0], [home]
+    axis_amp = np.minimum(AXIS_FRACTION * room, MAX_AMPLITUDE)
+    times, points = [0.0, rest], [home, home]
     for i, axis in enumerate("xyz"):
         t0, t1 = bounds[axis]
         step = np.zeros(3)
@@ -205,15 +208,14 @@ def commanded_trajectory(t: np.ndarray, desc: dict) -> Plan:
     pos = _waypoints(t, np.array(times), np.array(points))
     # mixed segment: windowed Lissajous figure over the workspace, a few degrees of rotation
     m0, m1 = bounds["mixed"]
-    mixed_amp = MIXED_FRACTION * room
+    mixed_amp = np.minimum(MIXED_FRACTION * room, MAX_AMPLITUDE)
     tau = np.clip((t - m0) / (m1 - m0), 0.0, 1.0)
-    inside = (t >= m0)[:, None]
-    env = _window(tau)[:, None]
+    env = _window(tau)[:, None]  # 0 before the segment (tau clipped to 0)
     cycles = np.array([2.0, 3.0, 2.5])
     phase = np.array([0.0, 0.5 * np.pi, 0.0])
-    pos = pos + inside * env * mixed_amp * np.sin(2 * np.pi * cycles * tau[:, None] + phase)
+    pos = pos + env * mixed_amp * np.sin(2 * np.pi * cycles * tau[:, None] + phase)
     ang = np.radians(ORIENTATION_DEG) * env * np.sin(2 * np.pi * np.array([1.5, 2.0, 1.0]) * tau[:, None]
-                                                     + np.array([0.0, 1.0, 0.0])) * inside
+                                                     + np.array([0.0, 1.0, 0.0]))
     rot = Rotation.from_euler("ZYX", ang[:, ::-1]).as_matrix()  # ang columns: roll, pitch, yaw
     return Plan(t, pos, rot, bounds, {"axis": axis_amp, "mixed": mixed_amp})
 
@@ -288,6 +290,9 @@ class CdprSimulator(Simulator):
         desc = shipped_description(p["robot"])
         nominal = nominal_geometry(desc)
         t = sample_times(p["duration"], p["rate"])
+        if len(t) < 10:
+            raise ConfigError(f"<simulate {self.name}>: duration * rate gives {len(t)} sample(s); "
+                              "expected at least 10")
         plan = commanded_trajectory(t, desc)
         true_pulleys = nominal.pulleys + rng.normal(0.0, p["pulley_error"], nominal.pulleys.shape)
         geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
@@ -331,13 +336,17 @@ class CdprSimulator(Simulator):
     def robots(self, params: dict) -> dict[str, dict]:
         """The shipped description with its nominal values. Offsets: the nominal guess a user makes
         for encoders zeroed at home, -(nominal length at home), to the mm (for arascam that is the
-        file's -2.9; for descriptions with absolute-encoder offsets it replaces them)."""
+        file's -2.9; cdpr_small's file has 0, absolute encoders, which this replaces). A camera and
+        a `vo_scale` (1.0 +- 10, as in arascam) are added where the description has none."""
         p = self._params(params)
         desc = shipped_description(p["robot"])
         geo = nominal_geometry(desc)
         home = home_position(desc)
         length, _ = cable_vectors(home[None], np.eye(3)[None], geo)
         desc["parameters"]["offset"]["values"] = [round(-float(x), 3) for x in length[0]]
+        # the camera rides on the end-effector; its VO scale is unknown (descriptions without one)
+        desc.setdefault("sensors", {}).setdefault("camera", {"type": "monocular_camera", "frame": "end_effector"})
+        desc["parameters"].setdefault("vo_scale", {"type": "scalar", "value": 1.0, "sigma": 10.0})
         return {ROBOT_NAME: desc}
 
     def home_pose(self, params: dict) -> list[float]:
@@ -346,14 +355,25 @@ class CdprSimulator(Simulator):
         return [float(x) for x in home] + [0.0, 0.0, 0.0, 1.0]
 
     def initializers(self, params: dict) -> list[dict]:
-        """Initial values. For now dead reckoning of the VO at the description's nominal scale,
-        anchored at the home pose (the first `mocap` sample, which the origin prior also fixes).
-        TODO: the `cable.monte_carlo` initializer (pulleys, offsets and VO scale from the x / y / z
-        segments, no prior values) goes first here once it exists, then dead reckoning at its scale."""
-        return [{"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "anchor": "mocap",
-                 "scale": "vo_scale"}]
+        """Initial values. For now: dead reckoning of the VO at the description's nominal scale
+        (1.0, the truth is `scale`); pulleys and offsets start at their nominal values.
+
+        TODO(cable.monte_carlo): the Monte-Carlo self-calibration initializer (pulleys, offsets and
+        VO scale from the x / y / z segments, no prior values) goes FIRST in this list once it
+        exists; dead reckoning then runs at the scale it found."""
+        return [{"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale"}]
+
+    def solver(self, params: dict) -> dict:
+        """Dogleg: from the nominal VO scale (half the truth by default) the dead-reckoned start is
+        far off, and batch LM stops at iteration 0 (its damping is capped at lambda = 1e5, tiny
+        next to this graph's Hessian); switch to `lm` once the Monte-Carlo initializer exists."""
+        return {"type": "batch", "method": "dogleg"}
 
     def config(self, params: dict) -> dict:
+        """VO + encoders (no motion capture): origin prior at the home pose, scaled VO, rigid cable
+        lengths. The data follow the elastic model when the description has stiffness_EA (arascam:
+        about 1.5 mm of stretch); `cable.elastic_length` with the `tensions` stream models it
+        exactly but is a Python factor (about 4x slower to solve)."""
         p = self._params(params)
         vo_sigma = {k: max(v, 1e-4) for k, v in self.vo_sigma(p).items()}
         cable_sigma = max(p["encoder_sigma"], 1e-4)
@@ -368,7 +388,7 @@ class CdprSimulator(Simulator):
                  "sigma": vo_sigma},
                 {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths", "sigma": cable_sigma}],
             "initializers": self.initializers(p),
-            "solver": {"type": "batch", "method": "lm"}}
+            "solver": self.solver(p)}
 
 
 SIMULATORS = [CdprSimulator]

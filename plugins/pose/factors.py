@@ -176,20 +176,20 @@ class RelativePose(FactorType):
         return FactorExample(gtsam.BetweenFactorPose3(0, 1, xa.between(xb), gaussian([0.01] * 6)), values)
 
 
-def _scaled_error(rot: gtsam.Rot3, t: np.ndarray, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
+def _scaled_error(measured: gtsam.Pose3, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
     k = this.keys()
-    return scaled_between_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atDouble(k[2]), rot, t, H)
+    return scaled_between_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atDouble(k[2]), measured, H)
 
 
 def scaled_between_factor(a: int, b: int, s: int, delta_unscaled: gtsam.Pose3, noise) -> gtsam.CustomFactor:
-    """Relative pose a->b measured up to the scale variable s (true translation = s * measured)."""
-    return gtsam.CustomFactor(noise, [a, b, s], partial(_scaled_error, delta_unscaled.rotation(),
-                                                        np.asarray(delta_unscaled.translation())))
+    """Relative pose a->b measured in sensor units: true translation = s * measured (noise in sensor units)."""
+    return gtsam.CustomFactor(noise, [a, b, s], partial(_scaled_error, delta_unscaled))
 
 
 class ScaledRelativePose(FactorType):
     name = "pose.scaled_relative"
-    summary = "monocular visual odometry: relative pose with an unknown scale shared by the sequence (eq. 4.3)"
+    summary = ("monocular visual odometry: relative pose with an unknown scale shared by the sequence (eq. 4.3); "
+               "sigma.translation in the VO's own units")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",

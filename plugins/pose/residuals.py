@@ -6,24 +6,27 @@ import gtsam
 import numpy as np
 
 
-def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, rot: gtsam.Rot3,
-                            t_unscaled: np.ndarray, H: list | None = None) -> np.ndarray:
+def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, measured: gtsam.Pose3,
+                            H: list | None = None) -> np.ndarray:
     """Relative pose with unknown scale (spec eq. 4.3): the sensor reports (R, t / s).
 
-    Measurement Z(s) = (R, s * t_unscaled); error e = Log(E), E = Z(s)^-1 xa^-1 xb.
-    Jacobians (written into H when given), with Jr^-1 the inverse right Jacobian at e:
-    d/dxb = Jr^-1;  d/dxa = -Jr^-1 Ad((xa^-1 xb)^-1);  d/ds = -Jr^-1 Ad(E^-1) [0; R^T t_unscaled]
-    (Z(s + ds) = Z(s) Exp([0, R^T t ds])).
+    The residual lives in the sensor's own units, where its noise does not depend on s:
+    B = xa^-1 xb, B_s = (R_B, t_B / s), e = Log(measured^-1 B_s) (rotation rad, translation in
+    sensor units). (A residual in metres, Log((R, s t)^-1 B), lets the noise grow with s and biases
+    the scale low.) With D = diag(I, I/s), E = measured^-1 B_s and Jr^-1 at e:
+    d/dxb = Jr^-1 D;  d/dxa = -Jr^-1 D Ad(B^-1);  d/ds = Jr^-1 [0; -R_B^T t_B / s^2].
     """
     between = xa.between(xb)
-    err = gtsam.Pose3(rot, scale * t_unscaled).between(between)
+    t = between.translation()
+    err = measured.between(gtsam.Pose3(between.rotation(), t / scale))
     e = gtsam.Pose3.Logmap(err)
     if H is not None:
         j_inv = gtsam.Pose3.LogmapDerivative(e)
-        H[0] = -j_inv @ between.inverse().AdjointMap()
-        H[1] = j_inv
-        dz_ds = np.concatenate([np.zeros(3), rot.unrotate(t_unscaled)])
-        H[2] = -(j_inv @ (err.inverse().AdjointMap() @ dz_ds)).reshape(6, 1)
+        jd = j_inv.copy()
+        jd[:, 3:] /= scale
+        H[1] = jd
+        H[0] = -jd @ between.inverse().AdjointMap()
+        H[2] = (j_inv[:, 3:] @ (-between.rotation().unrotate(t) / scale**2)).reshape(6, 1)
     return e
 
 

@@ -25,7 +25,7 @@ class ScaledVoSimulator(Simulator):
                                                "minItems": 3, "maxItems": 3}},
               "additionalProperties": False}
     defaults = {"duration": 25.0, "rate": 30.0, "scale": 2.5, "mocap_every": 60, "marker_offset": [0.0, 0.0, 0.05],
-                "vo_sigma": {"rotation": 0.002, "translation": 0.004},
+                "vo_sigma": {"rotation": 0.002, "translation": 0.0016},
                 "mocap_sigma": {"rotation": 0.01, "translation": 0.01}}
 
     def stream_columns(self, params: dict):

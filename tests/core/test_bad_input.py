@@ -284,7 +284,7 @@ def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
 def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
     target = tmp_path / "sim"
     message = fails(capsys, ["simulate", "pose.nope", "--out", str(target)], out=target)
-    assert message.startswith("unknown scenario 'pose.nope'; installed simulators: pose.scaled_vo, pose.two_robots")
+    assert message.startswith("unknown scenario 'pose.nope'; installed simulators: cable.cdpr, pose.scaled_vo, pose.two_robots")
     assert fails(capsys, ["simulate", "pose.scaled_vo", "--out", str(target), "--set", "durations=3"], out=target) == (
         "<simulate pose.scaled_vo>: durations: unknown key 'durations'; accepted keys: duration, marker_offset, "
         "mocap_every, mocap_sigma, rate, scale, vo_sigma")
@@ -296,13 +296,13 @@ def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("old, new, key, what", [
-    ("{rotation: 0.002, translation: 0.004}", '{rotation: "abc", translation: 0.004}', "factors[0].sigma.rotation",
+    ("{rotation: 0.002, translation: 0.0016}", '{rotation: "abc", translation: 0.004}', "factors[0].sigma.rotation",
      "got 'abc'; expected a number > 0"),
-    ("{rotation: 0.002, translation: 0.004}", "{rotation: -1, translation: 0.004}", "factors[0].sigma.rotation",
+    ("{rotation: 0.002, translation: 0.0016}", "{rotation: -1, translation: 0.004}", "factors[0].sigma.rotation",
      "got -1; expected a number > 0"),
-    ("{rotation: 0.002, translation: 0.004}", "{rotation: .nan, translation: 0.004}", "factors[0].sigma.rotation",
+    ("{rotation: 0.002, translation: 0.0016}", "{rotation: .nan, translation: 0.004}", "factors[0].sigma.rotation",
      "got nan; expected a number > 0"),
-    ("{rotation: 0.002, translation: 0.004}", "{rotation: 0.002}", "factors[0].sigma",
+    ("{rotation: 0.002, translation: 0.0016}", "{rotation: 0.002}", "factors[0].sigma",
      "'translation' is required but missing (expected a number > 0)"),
     ("{rotation: 0.01, translation: 0.01}", "0.01", "factors[1].sigma",
      "got 0.01; expected a mapping with keys rotation, translation"),

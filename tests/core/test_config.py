@@ -196,7 +196,7 @@ def test_quickstart_loads_with_overrides_applied():
                                       "factors[1].sigma.translation=2e-2"])
     assert config.name == "quickstart" and config.seed == 0
     assert config.solver == {"type": "isam2", "method": "lm"}
-    assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.004}
+    assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.0016}
     assert config.factors[1]["sigma"] == {"rotation": 0.01, "translation": 0.02}
     assert config.sources[0]["params"] == {"duration": 5, "rate": 30.0, "scale": 2.5}
     assert list(config.robots) == ["cam"]

@@ -21,7 +21,7 @@ SOLVERS = {
     "gn": ["solver.method=gn"],
     "dogleg": ["solver.method=dogleg"],
     "isam2": ["solver={type: isam2}"],
-    "fixed_lag": ["solver={type: fixed_lag, lag: 2.0}"],
+    "fixed_lag": ["solver={type: fixed_lag, lag: 3.0}"],
 }
 BATCH = ("lm", "gn", "dogleg")
 INCREMENTAL = ("isam2", "fixed_lag")
@@ -69,9 +69,10 @@ def test_solver_recovers_scale_and_trajectory(runs, name):
 def test_batch_methods_agree(runs):
     ref_scale = scale_of(runs["lm"])
     for name in ("gn", "dogleg"):
-        assert scale_of(runs[name])[0] == pytest.approx(ref_scale[0], abs=1e-6)
-        assert scale_of(runs[name])[1] == pytest.approx(ref_scale[1], rel=1e-6)
-        assert max_pose_difference(runs["lm"], runs[name]) < 1e-6
+        # the same minimum, up to the convergence tolerance (1e-6 relative cost decrease)
+        assert scale_of(runs[name])[0] == pytest.approx(ref_scale[0], abs=1e-3 * ref_scale[1])
+        assert scale_of(runs[name])[1] == pytest.approx(ref_scale[1], rel=1e-4)
+        assert max_pose_difference(runs["lm"], runs[name]) < 1e-4
 
 
 def test_isam2_agrees_with_batch(runs):
