@@ -44,6 +44,8 @@ def interpolate_poses(sample_t: np.ndarray, poses: np.ndarray, query_t: np.ndarr
 
     Returns (mask of queries inside the sample span and not across a gap > max_gap, (M, 7) poses).
     """
+    if len(query_t) == len(sample_t) and np.array_equal(query_t, sample_t):
+        return np.ones(len(query_t), dtype=bool), poses.copy()  # states clocked by this stream
     inside = (query_t >= sample_t[0]) & (query_t <= sample_t[-1])
     q = query_t[inside]
     out = np.empty((len(q), 7))

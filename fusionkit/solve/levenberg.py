@@ -29,27 +29,32 @@ class DampingSettings:
     max_diagonal: float = 1e32
 
 
-def hessian_diagonal(linear: gtsam.GaussianFactorGraph, dims: dict[int, int]) -> dict[int, np.ndarray]:
-    """diag(A^T A) per key, from the sparse Jacobian (columns follow the sorted keys)."""
-    rows, cols, vals = linear.sparseJacobian_()
-    total = sum(dims.values())
+def hessian_diagonal(linear: gtsam.GaussianFactorGraph, total_dim: int) -> np.ndarray:
+    """diag(A^T A) over all variables, ordered by sorted key (the sparse Jacobian's column order)."""
+    _, cols, vals = linear.sparseJacobian_()
     cols = cols.astype(int) - 1
-    keep = cols < total  # the last column is the right-hand side
-    diag = np.bincount(cols[keep], weights=vals[keep] ** 2, minlength=total)
-    out, start = {}, 0
-    for key in sorted(dims):
-        out[key] = diag[start:start + dims[key]]
-        start += dims[key]
-    return out
+    keep = cols < total_dim  # the last column is the right-hand side
+    return np.bincount(cols[keep], weights=vals[keep] ** 2, minlength=total_dim)
 
 
-def _damped(linear: gtsam.GaussianFactorGraph, diagonal: dict[int, np.ndarray], lam: float,
-            settings: DampingSettings) -> gtsam.GaussianFactorGraph:
-    damped = linear.clone()
-    for key, d in diagonal.items():
-        root = np.sqrt(lam * np.clip(d, settings.min_diagonal, settings.max_diagonal))
-        damped.add(gtsam.JacobianFactor(key, np.diag(root), np.zeros(len(d)), gtsam.noiseModel.Unit.Create(len(d))))
-    return damped
+class Damping:
+    """Builds the damped system: Marquardt rows sqrt(lambda * diag) per variable, made in one numpy pass."""
+
+    def __init__(self, values: gtsam.Values, settings: DampingSettings):
+        zero = values.zeroVectors()
+        self.keys = sorted(values.keys())
+        self.dims = [zero.at(k).shape[0] for k in self.keys]
+        self.offsets = np.concatenate([[0], np.cumsum(self.dims)])
+        self.settings = settings
+        self.units = {d: gtsam.noiseModel.Unit.Create(d) for d in set(self.dims)}
+        self.zeros = {d: np.zeros(d) for d in set(self.dims)}
+
+    def damped(self, linear: gtsam.GaussianFactorGraph, diagonal: np.ndarray, lam: float) -> gtsam.GaussianFactorGraph:
+        roots = np.sqrt(lam * np.clip(diagonal, self.settings.min_diagonal, self.settings.max_diagonal))
+        out = linear.clone()
+        for key, dim, start in zip(self.keys, self.dims, self.offsets):
+            out.add(gtsam.JacobianFactor(key, np.diag(roots[start:start + dim]), self.zeros[dim], self.units[dim]))
+        return out
 
 
 def _converged(before: float, after: float, rtol: float, atol: float) -> bool:
@@ -63,13 +68,13 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
     """Minimize graph.error; `damping=None` gives plain Gauss-Newton. Returns (values, cost history)."""
     values, cost = initial, graph.error(initial)
     history = [cost]
-    dims = {k: values.zeroVectors().at(k).shape[0] for k in values.keys()} if damping else {}
+    damper = Damping(values, damping) if damping else None
     lam = damping.lambda_initial if damping else 0.0
     for it in range(1, max_iterations + 1):
         linear = graph.linearize(values)
-        diagonal = hessian_diagonal(linear, dims) if damping else {}
+        diagonal = hessian_diagonal(linear, int(damper.offsets[-1])) if damper else None
         while True:
-            delta = (_damped(linear, diagonal, lam, damping) if damping else linear).optimize()
+            delta = (damper.damped(linear, diagonal, lam) if damper else linear).optimize()
             candidate = values.retract(delta)
             new_cost = graph.error(candidate)
             if damping is None or new_cost <= cost:

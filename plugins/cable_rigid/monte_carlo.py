@@ -78,7 +78,9 @@ trajectory would misplace the stages whenever the motion plan differs from the a
 
 from __future__ import annotations
 
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import gtsam
@@ -93,8 +95,8 @@ from .model import cable_robot
 
 NF = 11                  # lifted features of the squared cable equation
 DIM = 5                  # particle state: a (3, relative to the first attachment point), eps, s
-ESS_TARGET = 0.5         # conditional ESS per tempering step, and resampling threshold (fraction of P)
-MOVES = 2                # random-walk Metropolis-Hastings moves after each resampling (plus a rotation)
+ESS_TARGET = 0.3         # conditional ESS per tempering step, and resampling threshold (fraction of P)
+MOVES = 1                # random-walk Metropolis-Hastings moves after each resampling (plus a rotation)
 ACCEPT_TARGET = 0.25
 MAX_STEP = {"step": 2.0, "turn": np.pi}  # random-walk step (in cloud sigmas), rotation angle sigma (rad)
 STAGE_FRACTION = 0.1     # an axis of motion is covered once its spread exceeds this fraction of the largest
@@ -233,11 +235,16 @@ def sample_shell_in_box(rmin: float, rmax: float, lo: np.ndarray, hi: np.ndarray
 # ------------------------------------------------------------------------------------ one cable
 @dataclass
 class Target:
-    """Energy E = w^T G w + lam (s - mu)^2 (= -2 log posterior inside the prior box)."""
+    """Energy E = w^T G w + lam (s - mu)^2 (= -2 log posterior inside the prior box; G None: 0)."""
 
-    G: np.ndarray
+    G: np.ndarray | None
     mu: float = 0.0
     lam: float = 0.0
+
+    def plus(self, beta: float, incr: "Target") -> "Target":
+        """This target plus beta times an increment (energies are linear in G and lam)."""
+        G = self.G if incr.G is None else self.G + beta * incr.G
+        return Target(G, incr.mu if incr.lam else self.mu, self.lam + beta * incr.lam)
 
 
 class CableSampler:
@@ -291,8 +298,8 @@ class CableSampler:
         ra = np.sqrt(np.einsum("ip,ip->p", theta[:3], theta[:3]))
         W = lifted(theta, ra)
         delta = ra + theta[3] - self.L0_ref
-        return self.inside(theta, ra), [self.quad(t.G, W, delta) + t.lam * (theta[4] - t.mu) ** 2
-                                        for t in targets]
+        return self.inside(theta, ra), [(0.0 if t.G is None else self.quad(t.G, W, delta))
+                                        + t.lam * (theta[4] - t.mu) ** 2 for t in targets]
 
     def initialize(self, eps_sigma: float) -> bool:
         a = sample_shell_in_box(*self.L0_range, self.lo, self.hi, self.P, self.rng)
@@ -305,37 +312,30 @@ class CableSampler:
         return True
 
     # --- annealing -----------------------------------------------------------------------------
-    def anneal(self, t0: Target, t1: Target, tempered, axis: np.ndarray,
-               E0: np.ndarray | None = None) -> np.ndarray:
-        """Temper the cloud from target t0 to t1; `tempered(beta)` is the target in between
-        (energies are linear in beta); `axis`: of the rotation moves; E0: the particles' energies
-        at t0 if known. Returns the energies at t1."""
-        if E0 is None:
-            ok, (E0, E1) = self.energies(self.theta, (t0, t1))
-        else:
-            ok, (E1,) = self.energies(self.theta, (t1,))
+    def anneal(self, base: Target, incr: Target, E: np.ndarray, axis: np.ndarray) -> np.ndarray:
+        """Temper the cloud from the target `base` (particle energies E) to base + incr by
+        adaptive steps; `axis`: of the rotation moves. Returns the energies at base + incr."""
+        ok, (dE,) = self.energies(self.theta, (incr,))
         self.logw[~ok] = -np.inf
         beta = 0.0
         while beta < 1.0:
-            b = next_beta(normalized(self.logw), E1 - E0, beta, ESS_TARGET)
-            self.logw += -0.5 * (b - beta) * (E1 - E0)
+            b = next_beta(normalized(self.logw), dE, beta, ESS_TARGET)
+            self.logw += -0.5 * (b - beta) * dE
             self.logw -= self.logw.max()
+            E = E + (b - beta) * dE
             beta = b
             self.stats["tempering_steps"] += 1
             if ess(self.logw) < ESS_TARGET * self.P:
                 idx = systematic(self.logw, self.rng)
-                self.theta = self.theta[:, idx]
-                E0, E1 = E0[idx], E1[idx]
+                self.theta, E = self.theta[:, idx], E[idx]
                 self.logw = np.zeros(self.P)
                 self.stats["resamplings"] += 1
-                self.move(tempered(beta), E0 + beta * (E1 - E0), axis)
+                E = self.move(base.plus(beta, incr), E, axis)
                 if beta < 1.0:
-                    _, (E0, E1) = self.energies(self.theta, (t0, t1))
-                else:
-                    E1 = self.last_E
-        return E1
+                    _, (dE,) = self.energies(self.theta, (incr,))
+        return E
 
-    def move(self, target: Target, E: np.ndarray, axis: np.ndarray) -> None:
+    def move(self, target: Target, E: np.ndarray, axis: np.ndarray) -> np.ndarray:
         """Metropolis-Hastings moves that leave the target invariant, in cylindrical coordinates
         about the principal axis u of the motion so far, through the first attachment point:
         y = (xi, rho, phi, eps, s) with a = xi u + rho (cos phi e1 + sin phi e2).
@@ -361,7 +361,7 @@ class CableSampler:
             E, Y = self._metropolis(prop, Y, target, E, (axis, e1, e2), "step")
         prop = Y.copy()
         prop[2] += self.turn * self.rng.standard_normal(self.P, dtype=np.float32)
-        self.last_E, _ = self._metropolis(prop, Y.copy(), target, E, (axis, e1, e2), "turn")
+        return self._metropolis(prop, Y.copy(), target, E, (axis, e1, e2), "turn")[0]
 
     def _cylindrical(self, u, e1, e2) -> np.ndarray:
         a = self.theta[:3]
@@ -390,21 +390,19 @@ class CableSampler:
 
     def assimilate(self, bounds, snapshots=()) -> dict[int, np.ndarray]:
         """The data prefix by prefix (batch ends `bounds`); the clouds (3, P) at `snapshots`."""
-        G_prev, n_prev, snaps, E = np.zeros((self.terms, NF, NF)), 0, {}, np.zeros(self.P)
+        G, n_prev, snaps, E = np.zeros((self.terms, NF, NF)), 0, {}, np.zeros(self.P)
         for n in bounds:
-            G_new = G_prev + self.gram(n_prev, n)
-            E = self.anneal(Target(G_prev), Target(G_new), lambda b, G0=G_prev, G1=G_new: Target(G0 + b * (G1 - G0)),
-                            principal_axis(self.d[:n]), E)
-            G_prev, n_prev = G_new, n
+            dG = self.gram(n_prev, n)
+            E = self.anneal(Target(G), Target(dG), E, principal_axis(self.d[:n]))
+            G, n_prev = G + dG, n
             if n in snapshots:
                 snaps[n] = self.resampled_pulleys()
-        self.G = G_prev
+        self.G, self.E = G, E
         return snaps
 
     def condition_scale(self, mean: float, var: float) -> None:
         """Temper in the other cables' scale belief N(mean, var)."""
-        self.anneal(Target(self.G), Target(self.G, mean, 1.0 / var), lambda b: Target(self.G, mean, b / var),
-                    principal_axis(self.d))
+        self.E = self.anneal(Target(self.G), Target(None, mean, 1.0 / var), self.E, principal_axis(self.d))
 
     # --- summaries ---------------------------------------------------------------------------
     def weights(self) -> np.ndarray:
@@ -478,6 +476,7 @@ class Calibration:
     scale: float
     scale_sigma: float
     scale_per_cable: np.ndarray   # (n, 2) mean, sigma of each cable's own scale belief
+    scale_consistency: float      # scatter of the cables' scales over their spreads (chi2 / dof)
     fit_rms: np.ndarray           # (n,) exact residual rms of the estimate (m)
     stage_poses: list[int]        # prefix lengths ending the stages
     axes_covered: int
@@ -493,13 +492,15 @@ class Calibration:
 def calibrate(c: np.ndarray, d: np.ndarray, z: np.ndarray, L0_guess: np.ndarray, region: tuple,
               scale_range: tuple, sigma: float, *, spread: float = 0.05, particles: int = 5000,
               rng: np.random.Generator | None = None, vo_sigma: tuple[float, float] = (0.0, 0.0),
-              batch: int = 25, plot_points: int = PLOT_POINTS) -> Calibration:
+              batch: int = 25, plot_points: int = PLOT_POINTS, workers: int | None = None) -> Calibration:
     """The Monte-Carlo self-calibration on arrays.
 
     c: (n, K, 3) attachment points at scale 0 (X0 R_k b_i + t0); d: (K, 3) the unscaled VO
     displacement in the base frame (R_X0 t_k); z: (n, K) encoder readings; L0_guess: (n,) nominal
     cable lengths at the first pose; region: (lo, hi) where pulleys may be; scale_range: (min, max);
-    sigma: encoder noise (m); vo_sigma: per-frame VO (rotation rad, translation m) noise."""
+    sigma: encoder noise (m); vo_sigma: per-frame VO (rotation rad, translation m) noise.
+    Cables run in `workers` threads (default: up to 2; numpy releases the GIL in the array work);
+    each cable draws from its own generator spawned from `rng`, so results do not depend on it."""
     tic = time.perf_counter()
     rng = np.random.default_rng() if rng is None else rng
     n, K = z.shape
@@ -507,31 +508,42 @@ def calibrate(c: np.ndarray, d: np.ndarray, z: np.ndarray, L0_guess: np.ndarray,
     stage_poses, axes = motion_stages(d)
     bounds = sorted(set(list(range(batch, K, batch)) + [K] + stage_poses))
     sig = pose_sigmas(d, sigma, vo_sigma, float(np.sqrt(scale_range[0] * scale_range[1])))
-    samplers, clouds = [], []
-    for i in range(n):
-        dz = z[i] - z[i, 0]
+    samplers = []
+    for i, r in enumerate(rng.spawn(n)):
         L0r = (L0_guess[i] - spread, L0_guess[i] + spread)
-        smp = CableSampler(c[i], d, dz, sig, L0r, lo, hi, scale_range, particles, rng)
+        smp = CableSampler(c[i], d, z[i] - z[i, 0], sig, L0r, lo, hi, scale_range, particles, r)
         if not smp.initialize(sigma):
             raise ValueError(f"cable {i}: the region does not meet the sphere of radius "
                              f"{L0_guess[i]:.3f} +- {spread} m around the first attachment point")
-        snaps = smp.assimilate(bounds, set(stage_poses))
-        clouds.append([snaps[p] for p in stage_poses])
         samplers.append(smp)
+    workers = min(n, workers or min(2, os.cpu_count() or 1))
 
-    # the shared scale: product of the cables' beliefs; each cable conditioned on the others'
+    def run_all(fn, items):
+        if workers <= 1:
+            return [fn(*x) for x in items]
+        with ThreadPoolExecutor(workers) as pool:
+            return list(pool.map(lambda x: fn(*x), items))
+
+    clouds = run_all(lambda smp: smp.assimilate(bounds, set(stage_poses)), [(s,) for s in samplers])
+
+    # the shared scale: product of the cables' beliefs (variances inflated by the scatter of their
+    # means when it exceeds them: drift makes the cables disagree more than their own spreads say)
     own = np.array([smp.scale_belief() for smp in samplers])  # mean, var
     var = np.maximum(own[:, 1], 1e-14)
+    consistency = 1.0
+    if n > 1:
+        m = (own[:, 0] / var).sum() / (1.0 / var).sum()
+        consistency = float(((own[:, 0] - m) ** 2 / var).sum() / (n - 1))
+        var = var * max(consistency, 1.0)
     prec = 1.0 / var
     scale_var = 1.0 / prec.sum()
     scale = float(scale_var * (prec @ own[:, 0]))
-    for i, smp in enumerate(samplers):
-        if n > 1:
-            p = prec.sum() - prec[i]
-            smp.condition_scale(float((prec @ own[:, 0] - prec[i] * own[i, 0]) / p), float(1.0 / p))
-    final = [smp.resampled_pulleys() for smp in samplers]
+    if n > 1:
+        others = [((prec @ own[:, 0] - prec[i] * own[i, 0]) / (prec.sum() - prec[i]), 1.0 / (prec.sum() - prec[i]))
+                  for i in range(n)]
+        run_all(lambda smp, mv: smp.condition_scale(*mv), list(zip(samplers, others)))
 
-    pulley, cov, L0, L0s, rms = [], [], [], [], []
+    pulley, cov, L0, L0s, rms, final = [], [], [], [], [], []
     for i, smp in enumerate(samplers):
         W = smp.weights()
         A = smp.pulleys()
@@ -543,17 +555,14 @@ def calibrate(c: np.ndarray, d: np.ndarray, z: np.ndarray, L0_guess: np.ndarray,
         L0s.append(float(np.sqrt(W @ (lengths - L0[-1]) ** 2)))
         r = geometric_residuals(c[i], d, z[i] - z[i, 0], m, L0[-1], scale)
         rms.append(float(np.sqrt(np.mean(r ** 2))))
-    cov = np.array(cov)
-    stage_clouds = []
-    for j in range(3):
-        pts = [clouds[i][j] if j < 2 else final[i] for i in range(n)]
-        stage_clouds.append(pts)
+        final.append(smp.resampled_pulleys())
+    stage_clouds = [[clouds[i][stage_poses[0]] for i in range(n)], [clouds[i][stage_poses[1]] for i in range(n)],
+                    final]
     stage_spread = np.array([[np.sqrt(np.clip(np.linalg.eigvalsh(np.cov(p)), 0, None))[::-1] for p in pts]
                              for pts in stage_clouds])
-    thin = []
-    for pts in stage_clouds:
-        thin.append(np.stack([p[:, rng.choice(p.shape[1], min(plot_points, p.shape[1]), replace=False)]
-                              for p in pts]))
-    return Calibration(np.array(pulley), cov, np.array(L0), np.array(L0s), scale, float(np.sqrt(scale_var)),
-                       np.column_stack([own[:, 0], np.sqrt(own[:, 1])]), np.array(rms), stage_poses, axes,
-                       thin, stage_spread, time.perf_counter() - tic, [s.stats for s in samplers])
+    thin = [np.stack([p[:, rng.choice(p.shape[1], min(plot_points, p.shape[1]), replace=False)] for p in pts])
+            for pts in stage_clouds]
+    return Calibration(np.array(pulley), np.array(cov), np.array(L0), np.array(L0s), scale,
+                       float(np.sqrt(scale_var)), np.column_stack([own[:, 0], np.sqrt(own[:, 1])]), consistency,
+                       np.array(rms), stage_poses, axes, thin, stage_spread, time.perf_counter() - tic,
+                       [s.stats for s in samplers])
