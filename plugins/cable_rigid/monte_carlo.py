@@ -95,9 +95,10 @@ from .model import cable_robot
 
 NF = 11                  # lifted features of the squared cable equation
 DIM = 5                  # particle state: a (3, relative to the first attachment point), eps, s
-ESS_TARGET = 0.3         # conditional ESS per tempering step, and resampling threshold (fraction of P)
-MOVES = 1                # random-walk Metropolis-Hastings moves after each resampling (plus a rotation)
+ESS_TARGET = float(os.environ.get("MC_ESS", 0.3))         # conditional ESS per tempering step, and resampling threshold (fraction of P)
+MOVES = int(os.environ.get("MC_MOVES", 2))                # random-walk Metropolis-Hastings moves after each resampling (plus a rotation)
 ACCEPT_TARGET = 0.25
+RING_CONCENTRATION = float(os.environ.get("MC_RING", 0.99))  # |mean exp(i phi)| below this: the cloud is spread around the axis
 MAX_STEP = {"step": 2.0, "turn": np.pi}  # random-walk step (in cloud sigmas), rotation angle sigma (rad)
 STAGE_FRACTION = 0.1     # an axis of motion is covered once its spread exceeds this fraction of the largest
 CONVERGED_SPREAD = 0.1   # m: a pulley belief wider than this (1 sigma, any direction) is not resolved
@@ -356,12 +357,15 @@ class CableSampler:
         mean_phi = np.arctan2(np.sin(Y[2]).mean(), np.cos(Y[2]).mean())
         centred[2] = np.mod(Y[2] - mean_phi + np.pi, 2 * np.pi)  # the cloud's spread in phi about its mean
         L = np.linalg.cholesky(np.cov(centred) + 1e-14 * np.eye(DIM))
-        for _ in range(MOVES):
+        ring = np.hypot(np.sin(Y[2]).mean(), np.cos(Y[2]).mean()) < RING_CONCENTRATION
+        for _ in range(MOVES + (not ring)):
             prop = Y + self.step * (L @ self.rng.standard_normal((DIM, self.P), dtype=np.float32))
             E, Y = self._metropolis(prop, Y, target, E, (axis, e1, e2), "step")
-        prop = Y.copy()
-        prop[2] += self.turn * self.rng.standard_normal(self.P, dtype=np.float32)
-        return self._metropolis(prop, Y.copy(), target, E, (axis, e1, e2), "turn")[0]
+        if ring:
+            prop = Y.copy()
+            prop[2] += self.turn * self.rng.standard_normal(self.P, dtype=np.float32)
+            E = self._metropolis(prop, Y.copy(), target, E, (axis, e1, e2), "turn")[0]
+        return E
 
     def _cylindrical(self, u, e1, e2) -> np.ndarray:
         a = self.theta[:3]
