@@ -57,6 +57,16 @@ def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
                       "static parameters need a prior until the data constrain them)") from None
 
 
+def _timed_update(problem: Problem, t: float, update: Callable[[], object]) -> float:
+    """Run one solver update; return its wall time (s), turning an indeterminate system into a SolverError."""
+    tic = time.perf_counter()
+    try:
+        update()
+    except RuntimeError as exc:
+        _raise_unconstrained(problem, exc, t)
+    return time.perf_counter() - tic
+
+
 def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
     graph = problem.graph()
     check_constrained(problem, graph)
@@ -64,13 +74,7 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     latency = []
     start = time.perf_counter()
     for i, (t, factors, new) in enumerate(time_steps(problem)):
-        values = value_subset(problem, new)
-        tic = time.perf_counter()
-        try:
-            isam.update(factors, values)
-        except RuntimeError as exc:
-            _raise_unconstrained(problem, exc, t)
-        latency.append(time.perf_counter() - tic)
+        latency.append(_timed_update(problem, t, lambda: isam.update(factors, value_subset(problem, new))))
         if progress and i % 100 == 0:
             progress(i, float("nan"))
     estimate = isam.calculateEstimate()
@@ -112,12 +116,8 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             stamps[k] = now if kt == float("-inf") else kt
             if kt != float("-inf"):
                 in_window[k] = kt
-        tic = time.perf_counter()
-        try:
-            smoother.update(factors, value_subset(problem, new), stamps)
-        except RuntimeError as exc:
-            _raise_unconstrained(problem, exc, now)
-        latency.append(time.perf_counter() - tic)
+        values = value_subset(problem, new)
+        latency.append(_timed_update(problem, now, lambda: smoother.update(factors, values, stamps)))
         if progress and i % 100 == 0:
             progress(i, float("nan"))
     est = smoother.calculateEstimate()

@@ -45,6 +45,13 @@ def mount_of(ctx, spec: Spec) -> gtsam.Pose3:
     return ctx.robot(spec["robot"]).sensors[spec["sensor"]].mount
 
 
+def check_pose_stream_entry(spec: Spec, scope) -> None:
+    """A pose stream, a robot with states, and (if named) a sensor of that robot."""
+    scope.require_columns(spec, "stream", POSE_COLUMNS)
+    scope.require_states(spec, "robot")
+    check_sensor(spec, scope)
+
+
 def check_sensor(spec: Spec, scope) -> None:
     if "sensor" in spec.data:
         sensors = scope.robots[spec["robot"]].sensors
@@ -83,9 +90,7 @@ class AbsolutePose(FactorType):
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        scope.require_columns(spec, "stream", POSE_COLUMNS)
-        scope.require_states(spec, "robot")
-        check_sensor(spec, scope)
+        check_pose_stream_entry(spec, scope)
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
@@ -152,9 +157,7 @@ class RelativePose(FactorType):
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        scope.require_columns(spec, "stream", POSE_COLUMNS)
-        scope.require_states(spec, "robot")
-        check_sensor(spec, scope)
+        check_pose_stream_entry(spec, scope)
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
