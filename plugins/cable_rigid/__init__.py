@@ -4,6 +4,7 @@ pseudo-measurements (spec cable_rigid.md)."""
 from fusionkit import hookimpl
 
 from .factors import FACTOR_TYPES
+from .initializers import INITIALIZERS
 from .model import CdprModel
 from .simulator import SIMULATORS
 
@@ -21,3 +22,8 @@ def register_robot_models():
 @hookimpl
 def register_simulators():
     return SIMULATORS
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
