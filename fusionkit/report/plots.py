@@ -45,7 +45,7 @@ def plot_residuals(result: RunResult, file: Path) -> None:
         groups.setdefault(r.label, []).append(float(np.sqrt(2.0 * r.factor.error(values) / max(r.factor.dim(), 1))))
     fig, ax = plt.subplots(figsize=(10, 1.2 + 0.5 * len(groups)))
     labels = list(groups)
-    ax.boxplot([groups[k] for k in labels], vert=False, showfliers=True)
+    ax.boxplot([groups[k] for k in labels], orientation="horizontal", showfliers=True)
     ax.set_yticks(range(1, len(labels) + 1), labels, fontsize=8)
     ax.axvline(1.0, color="gray", linestyle=":")
     ax.set(xlabel="whitened residual RMS per factor (1 = as expected from the sigmas)", title="residuals")
