@@ -54,6 +54,7 @@ class RunResult:
     truth: Truth
     evaluation: dict[str, Any]
     timings: dict[str, float]
+    streams: dict[str, Stream] = field(default_factory=dict)  # the data the graph was built from
 
 
 def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
@@ -199,5 +200,5 @@ def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = 
     evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)
     evaluation["residuals_by_entry"] = residuals_by_entry(problem, solution.values)
     return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
-                     timings)
+                     timings, streams)
 

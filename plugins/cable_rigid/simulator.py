@@ -10,9 +10,11 @@ along x, then y, then z (what the Monte-Carlo self-calibration needs: line -> sh
 of roll/pitch/yaw.
 
 `motion: dynamic` (sequence 01): the commanded, quasi-static trajectory gives the cable lengths
-the encoders read and the tensions; the true end-effector additionally swings horizontally like a
-damped pendulum driven by the commanded accelerations (peak deviation `swing_amplitude`), which
-the kinematics cannot see but the VO (worse by `dynamic_vo_factor`) does.
+the encoders read and the tensions; the true end-effector additionally swings like a damped
+pendulum driven by the commanded accelerations (peak horizontal deviation `swing_amplitude`). With
+4 cables for 6 degrees of freedom the swing keeps every cable length -- the end-effector sways
+and tilts in the 2 free directions -- so the encoders cannot see it and forward kinematics (which
+must assume the orientation) misses it, while the VO (worse by `dynamic_vo_factor`) sees it.
 
 Streams: `vo` (scaled monocular VO, eq. 4.3), `lengths` (l0..l{n-1}, eq. 4.1/4.2), `tensions`
 (T0..T{n-1} in N, static equilibrium, quantized), `mocap` (noisy true poses, base frame).
@@ -52,6 +54,11 @@ MIXED_FRACTION = 0.4     # mixed 3-D segment (ARAS-CAM: more and a cable goes sl
 MAX_AMPLITUDE = 2.0      # m: large robots keep moderate speeds (lengthen `duration` to go slower)
 MIN_CLEARANCE = 0.5      # attachments stay at least this far below the lowest pulley (m)
 ORIENTATION_DEG = (2.0, 2.0, 4.0)  # roll, pitch, yaw amplitude in the mixed segment
+REGION_MARGIN = 1.0      # m: the Monte-Carlo search region is the nominal pulleys' box grown by this
+SCALE_RANGE = (0.2, 10.0)
+# The zero pose defines the base frame (it is not measured): a looser prior adds its own
+# uncertainty to every estimate (1 mrad there made the 1-sigma bounds hold 74 % instead of 68 %).
+ORIGIN_SIGMA = 1e-6  # the VO scale is searched over this range (metres per VO unit)
 
 
 @dataclass(frozen=True)
@@ -222,7 +229,7 @@ def commanded_trajectory(t: np.ndarray, desc: dict) -> Plan:
 
 def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: float,
                    damping: float) -> np.ndarray:
-    """(N, 3) horizontal deviation of a damped pendulum (natural `frequency` Hz, damping ratio
+    """(N, 2) horizontal deviation of a damped pendulum (natural `frequency` Hz, damping ratio
     `damping`) driven by the commanded horizontal acceleration, scaled to a peak of `amplitude`."""
     dt = float(t[1] - t[0])
     acc = np.gradient(np.gradient(pos[:, :2], dt, axis=0), dt, axis=0)
@@ -230,10 +237,38 @@ def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: 
     num, den, _ = cont2discrete(([-1.0], [1.0, 2 * damping * w, w * w]), dt, method="bilinear")
     e = lfilter(np.ravel(num), den, acc, axis=0)
     peak = np.linalg.norm(e, axis=1).max()
-    out = np.zeros_like(pos)
-    if peak > 0:
-        out[:, :2] = e * (amplitude / peak)
-    return out
+    return e * (amplitude / peak) if peak > 0 else e
+
+
+def length_jacobian(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
+    """(N, n, 6) d l*_i / d [w, v]: a spatial twist about the end-effector origin (rotation w, rad;
+    translation v, m; base frame) moves attachment i by v + w x R b_i."""
+    lengths, arms = cable_vectors(pos, rot, geo)
+    u = (geo.pulleys[None] - pos[:, None, :] - arms) / lengths[..., None]  # attachment -> pulley
+    return -np.concatenate([np.cross(arms, u), u], axis=2)
+
+
+def _moved(pos: np.ndarray, rot: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return pos + twist[:, 3:], Rotation.from_rotvec(twist[:, :3]).as_matrix() @ rot
+
+
+def swing_at_constant_lengths(pos: np.ndarray, rot: np.ndarray, deviation: np.ndarray, geo: Geometry,
+                              iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Poses displaced by a horizontal `deviation` (N, 2) while every cable keeps its length: n < 6
+    cables leave the end-effector 6 - n degrees of freedom (it swings, translating and tilting),
+    which the encoders cannot see. The twist is the null-space motion of the cable Jacobian whose
+    horizontal translation is `deviation` (least squares); Newton steps (minimum norm) then restore
+    the lengths exactly (to 1e-12 m)."""
+    target, _ = cable_vectors(pos, rot, geo)
+    _, _, vt = np.linalg.svd(length_jacobian(pos, rot, geo))
+    null = vt[:, geo.n:, :].transpose(0, 2, 1)  # (N, 6, 6 - n)
+    coeff = np.einsum("kij,kj->ki", np.linalg.pinv(null[:, 3:5, :]), deviation)
+    pos, rot = _moved(pos, rot, np.einsum("kij,kj->ki", null, coeff))
+    for _ in range(iterations):
+        lengths, _ = cable_vectors(pos, rot, geo)
+        step = np.einsum("kij,kj->ki", np.linalg.pinv(length_jacobian(pos, rot, geo)), target - lengths)
+        pos, rot = _moved(pos, rot, step)
+    return pos, rot
 
 
 # --------------------------------------------------------------------------------------- simulator
@@ -266,10 +301,10 @@ class CdprSimulator(Simulator):
               "additionalProperties": False}
     defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
                 "pulley_error": 0.05,
-                "vo_sigma": {"rotation": 0.002, "translation": 0.002}, "dynamic_vo_factor": 2.5,
+                "vo_sigma": {"rotation": 0.001, "translation": 0.0005}, "dynamic_vo_factor": 2.5,
                 "encoder_sigma": 0.001, "tension_resolution": 0.25, "tension_sigma": 0.1,
                 "mocap_sigma": {"rotation": 0.002, "translation": 0.001}, "mocap_every": 1,
-                "swing_amplitude": 0.03, "swing_frequency": 0.6, "swing_damping": 0.05}
+                "swing_amplitude": 0.02, "swing_frequency": 0.6, "swing_damping": 0.05}
 
     def _params(self, params: dict) -> dict:
         return _merged(self.defaults, params)
@@ -309,11 +344,11 @@ class CdprSimulator(Simulator):
         measured_t = np.maximum(measured_t, 0.0)
 
         # true pose: commanded (+ the pendulum swing the kinematics cannot see, dynamic motion)
-        true_pos = plan.pos
+        true_pos, true_rot = plan.pos, plan.rot
         if p["motion"] == "dynamic":
-            true_pos = plan.pos + pendulum_swing(t, plan.pos, p["swing_amplitude"], p["swing_frequency"],
-                                                 p["swing_damping"])
-        quat = Rotation.from_matrix(plan.rot).as_quat()
+            swing = pendulum_swing(t, plan.pos, p["swing_amplitude"], p["swing_frequency"], p["swing_damping"])
+            true_pos, true_rot = swing_at_constant_lengths(plan.pos, plan.rot, swing, geo)
+        quat = Rotation.from_matrix(true_rot).as_quat()
         truth_arr = np.column_stack([true_pos, quat])
         truth = poses_from_array(truth_arr)
         vo = odometry(truth, self.vo_sigma(p), rng, p["scale"])
@@ -354,41 +389,39 @@ class CdprSimulator(Simulator):
         home = home_position(shipped_description(self._params(params)["robot"]))
         return [float(x) for x in home] + [0.0, 0.0, 0.0, 1.0]
 
+    def search_region(self, params: dict) -> dict:
+        """Where the Monte-Carlo initializer looks for the pulleys: the nominal pulleys' bounding box
+        grown by REGION_MARGIN on every side (a user knows the room, not the pulleys)."""
+        pulleys = nominal_geometry(shipped_description(self._params(params)["robot"])).pulleys
+        return {"min": [round(float(x), 3) for x in pulleys.min(axis=0) - REGION_MARGIN],
+                "max": [round(float(x), 3) for x in pulleys.max(axis=0) + REGION_MARGIN]}
+
     def initializers(self, params: dict) -> list[dict]:
-        """Initial values. For now: dead reckoning of the VO at the description's nominal scale
-        (1.0, the truth is `scale`); pulleys and offsets start at their nominal values.
-
-        TODO(cable.monte_carlo): the Monte-Carlo self-calibration initializer (pulleys, offsets and
-        VO scale from the x / y / z segments, no prior values) goes FIRST in this list once it
-        exists; dead reckoning then runs at the scale it found."""
-        return [{"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale"}]
-
-    def solver(self, params: dict) -> dict:
-        """Dogleg: from the nominal VO scale (half the truth by default) the dead-reckoned start is
-        far off, and batch LM stops at iteration 0 (its damping is capped at lambda = 1e5, tiny
-        next to this graph's Hessian); switch to `lm` once the Monte-Carlo initializer exists."""
-        return {"type": "batch", "method": "dogleg"}
+        """Monte-Carlo self-calibration (pulleys, offsets and VO scale from the data alone, no
+        prior values: the region is the room, the scale anywhere in SCALE_RANGE), then dead
+        reckoning of the VO at the scale it found, from the home pose set by `pose.origin`."""
+        p = self._params(params)
+        return [{"type": "cable.monte_carlo", "robot": ROBOT_NAME, "stream": "vo", "lengths": "lengths",
+                 "region": self.search_region(p), "scale_range": list(SCALE_RANGE), "scale": "vo_scale",
+                 "sigma": max(p["encoder_sigma"], 1e-4), "vo_sigma": self.vo_sigma(p)},
+                {"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale"}]
 
     def config(self, params: dict) -> dict:
         """VO + encoders (no motion capture): origin prior at the home pose, scaled VO, rigid cable
-        lengths. The data follow the elastic model when the description has stiffness_EA (arascam:
-        about 1.5 mm of stretch); `cable.elastic_length` with the `tensions` stream models it
-        exactly but is a Python factor (about 4x slower to solve)."""
+        lengths; Monte-Carlo initialization and batch Levenberg-Marquardt."""
         p = self._params(params)
         vo_sigma = {k: max(v, 1e-4) for k, v in self.vo_sigma(p).items()}
-        cable_sigma = max(p["encoder_sigma"], 1e-4)
-        if p["motion"] == "dynamic":  # the swing the encoders do not see, projected on the cables
-            cable_sigma = float(np.hypot(cable_sigma, 0.5 * p["swing_amplitude"]))
         return {
             "robots": {ROBOT_NAME: {"description": f"robots/{ROBOT_NAME}.yaml", "states": {"stream": "vo"}}},
             "factors": [
                 {"type": "pose.origin", "robot": ROBOT_NAME, "pose": self.home_pose(p),
-                 "sigma": {"rotation": 0.001, "translation": 0.001}},
+                 "sigma": {"rotation": ORIGIN_SIGMA, "translation": ORIGIN_SIGMA}},
                 {"type": "pose.scaled_relative", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale",
                  "sigma": vo_sigma},
-                {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths", "sigma": cable_sigma}],
+                {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths",
+                 "sigma": max(p["encoder_sigma"], 1e-4)}],
             "initializers": self.initializers(p),
-            "solver": self.solver(p)}
+            "solver": {"type": "batch", "method": "lm"}}
 
 
 SIMULATORS = [CdprSimulator]

@@ -21,6 +21,17 @@ def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
             ctx.set_initial(key, to_pose2(p) if planar else p)
 
 
+def _first_state_pose(ctx, robot: str) -> gtsam.Pose3:
+    """The first state's current initial value as a Pose3 (a Pose2 lifted to the plane z = 0)."""
+    states = ctx.state_set(robot)
+    if not ctx.initial.exists(states.key(0)):
+        return gtsam.Pose3()
+    p = states.family.vartype.read(ctx.initial, states.key(0))
+    if isinstance(p, gtsam.Pose2):
+        return gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0]))
+    return p
+
+
 def _at_states(stream, t: np.ndarray) -> list[gtsam.Pose3]:
     """Stream poses at times t; times outside the stream's span take the nearest end pose."""
     clipped = np.clip(t, stream.t[0], stream.t[-1])
@@ -30,7 +41,8 @@ def _at_states(stream, t: np.ndarray) -> list[gtsam.Pose3]:
 
 class DeadReckoning(Initializer):
     name = "pose.dead_reckoning"
-    summary = "compose odometry increments from a start pose (anchored to an absolute stream if given)"
+    summary = ("compose odometry increments from a start pose: the first `anchor` pose if given, else the "
+               "first state's current initial value (set by pose.origin; identity otherwise)")
     robot_fields = ("robot",)
     stream_fields = ("stream", "anchor")
     schema = {"type": "object",
@@ -50,7 +62,7 @@ class DeadReckoning(Initializer):
         scale = 1.0
         if "scale" in spec.data:
             scale = float(ctx.initial.atDouble(ctx.parameter(robot, spec["scale"])))
-        start = gtsam.Pose3()
+        start = _first_state_pose(ctx, robot)
         if "anchor" in spec.data:
             anchor = ctx.stream(spec["anchor"])
             first = nearest(anchor.t, states.t[:1], np.inf)

@@ -18,6 +18,7 @@ from fusionkit.data.stream import poses_from_array
 from fusionkit_plugins.cable_rigid.simulator import (CdprSimulator, Geometry, commanded_trajectory,
                                                      encoder_readings, gravity_wrench, nominal_geometry,
                                                      shipped_description, wrench_matrix)
+from fusionkit_plugins.cable_rigid.kinematics import forward_kinematics
 
 SIM = CdprSimulator()
 SEED = 0
@@ -197,6 +198,9 @@ def test_simulation_is_fast():
 
 # ---------------------------------------------------------------------------------- dynamic motion
 def test_dynamic_swing_is_invisible_to_the_encoders(smooth, dynamic):
+    """The swing keeps every cable length (4 cables leave 2 degrees of freedom): the encoders read
+    the commanded lengths, which the true swinging poses have too, while forward kinematics at the
+    assumed (level) orientation cannot see it."""
     _, out_s = smooth
     params_d, out_d = dynamic
     # commanded motion and noise draws are the same: identical encoder readings and tensions
@@ -204,29 +208,38 @@ def test_dynamic_swing_is_invisible_to_the_encoders(smooth, dynamic):
     np.testing.assert_array_equal(out_d.streams["tensions"].values, out_s.streams["tensions"].values)
     dev = out_d.truth_trajectories["cdpr"].pose_array() - out_s.truth_trajectories["cdpr"].pose_array()
     horizontal = np.linalg.norm(dev[:, :2], axis=1)
-    assert horizontal.max() == pytest.approx(params_d["swing_amplitude"], rel=1e-6)
-    assert np.abs(dev[:, 2:]).max() == 0  # horizontal swing only, same orientation
+    assert horizontal.max() == pytest.approx(params_d["swing_amplitude"], rel=0.05)  # after the length fix
     assert horizontal[0] == 0  # at rest at home
     assert np.sqrt(np.mean(horizontal ** 2)) > 0.25 * params_d["swing_amplitude"]  # keeps swinging
     # dominant frequency of the swing: the pendulum's 0.6 Hz
     spectrum = np.abs(np.fft.rfft(dev[:, 0] - dev[:, 0].mean()))
     freq = np.fft.rfftfreq(len(dev), 1 / params_d["rate"])
     assert freq[np.argmax(spectrum)] == pytest.approx(params_d["swing_frequency"], abs=0.1)
-    # the encoders match the commanded (smooth) pose, not the true swinging one
+    # same cable lengths at the true swinging and the commanded poses
     geo = true_geometry(params_d, out_d)
+    lengths = [model_lengths(geo, *pose_arrays(o.truth_trajectories["cdpr"])) for o in (out_s, out_d)]
+    np.testing.assert_allclose(lengths[1], lengths[0], rtol=0, atol=1e-9)
+    # so the encoders match the truth to their noise in both sequences
     offsets = np.array(out_d.truth_calibration["cdpr"]["offset"]["values"])
     tensions, z = out_d.streams["tensions"].values, out_d.streams["lengths"].values
-    for truth, expected in ((out_s, (0.8, 1.2)), (out_d, (5, 30))):
-        pos, rot = pose_arrays(truth.truth_trajectories["cdpr"])
-        r = z - encoder_readings(model_lengths(geo, pos, rot), tensions, offsets, geo.stiffness_EA)
-        assert expected[0] < r.std() / params_d["encoder_sigma"] < expected[1]
+    r = z - encoder_readings(lengths[1], tensions, offsets, geo.stiffness_EA)
+    assert abs(r.std() / params_d["encoder_sigma"] - 1) < 0.2
+    # forward kinematics (level orientation, true geometry, noiseless lengths) misses the swing:
+    # measured rms 3.8 mm smooth (the commanded tilt of a few degrees), 12 mm dynamic (swing rms 8 mm)
+    fk, rms = forward_kinematics(geo.pulleys, np.zeros(4), geo.attachments, lengths[1])
+    assert rms.max() < 5e-3  # a level pose fits the lengths to mm
+    fk_error = [np.sqrt(np.mean(np.sum((fk - o.truth_trajectories["cdpr"].pose_array()[:, :3]) ** 2, axis=1)))
+                for o in (out_s, out_d)]
+    swing_rms = np.sqrt(np.mean(horizontal ** 2))
+    assert fk_error[0] < 0.005
+    assert fk_error[1] > 2 * fk_error[0] and fk_error[1] > 0.8 * swing_rms
 
 
 # -------------------------------------------------------------------------------- parameters, files
 def test_nested_parameters_keep_their_other_defaults():
     p = SIM._params({"vo_sigma": {"rotation": 0.01}})
-    assert p["vo_sigma"] == {"rotation": 0.01, "translation": 0.002}
-    assert SIM.vo_sigma({**p, "motion": "dynamic"}) == pytest.approx({"rotation": 0.025, "translation": 0.005})
+    assert p["vo_sigma"] == {"rotation": 0.01, "translation": 0.0005}
+    assert SIM.vo_sigma({**p, "motion": "dynamic"}) == pytest.approx({"rotation": 0.025, "translation": 0.00125})
 
 
 def test_descriptions_keep_the_nominal_values():
@@ -263,7 +276,7 @@ def test_written_config_recovers_pulleys_and_scale(tmp_path, capsys):
     result, pulley_error, scale_z = run_written(tmp_path, "vo_sigma={rotation: 0.0005, translation: 0.00025}")
     config = yaml.safe_load((tmp_path / "ds" / "config.yaml").read_text())
     assert [f["type"] for f in config["factors"]] == ["pose.origin", "pose.scaled_relative", "cable.length"]
-    assert config["initializers"][0]["type"] == "pose.dead_reckoning"
+    assert [i["type"] for i in config["initializers"]] == ["cable.monte_carlo", "pose.dead_reckoning"]
     assert np.all(pulley_error < 0.05)
     assert abs(scale_z) < 3
     assert result.evaluation["trajectories"]["cdpr"]["ate_rmse_m"] < 0.01  # measured 4.5 mm
@@ -277,11 +290,11 @@ def default_run(tmp_path_factory):
 
 
 def test_written_config_at_default_noise(default_run):
-    """VO 2 mrad / 2 VO units (4 mm) per frame: converges from the nominal scale 1.0; pulleys
-    within 25 cm (sigma 4-6 cm per axis)."""
+    """VO 1 mrad / 0.5 VO units (1 mm) per frame, Monte-Carlo start: pulleys within 12 cm
+    (measured 2-8 cm, mean over 30 seeds 4 cm), trajectory within 1.5 cm (measured 0.5-1 cm)."""
     result, pulley_error, _ = default_run
-    assert result.evaluation["trajectories"]["cdpr"]["ate_rmse_m"] < 0.025
-    assert np.all(pulley_error < 0.25)
+    assert result.evaluation["trajectories"]["cdpr"]["ate_rmse_m"] < 0.015
+    assert np.all(pulley_error < 0.12)
 
 
 def test_default_noise_scale_within_3_sigma(default_run):
