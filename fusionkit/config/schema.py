@@ -65,6 +65,7 @@ CONFIG_SCHEMA = {
                 "relative_tolerance": POSITIVE,
                 "absolute_tolerance": POSITIVE,
                 "lag": POSITIVE,
+                "warmup": {"type": "number", "minimum": 0},
                 "relinearize_threshold": POSITIVE,
                 "max_cost_ratio": POSITIVE,
                 "marginals": {"type": "boolean"},

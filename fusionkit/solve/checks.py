@@ -70,11 +70,13 @@ def residual_dimension(graph: gtsam.NonlinearFactorGraph) -> int:
 
 
 def check_solution(problem: Problem, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                   initial_error: float, final_error: float, max_cost_ratio: float) -> None:
-    """Fail on divergence (non-finite or growing cost) or a large final residual."""
+                   initial_error: float, final_error: float, max_cost_ratio: float,
+                   allowed_rise: float = 1e-6) -> None:
+    """Fail on divergence (non-finite cost, or a cost above the initial one by more than the
+    relative `allowed_rise`) or a large final residual."""
     if not np.isfinite(final_error):
         raise SolverError("the solver diverged: the cost became non-finite; check initial values and sigmas")
-    if final_error > initial_error * (1 + 1e-6) and final_error > 1e-9:
+    if final_error > initial_error * (1 + allowed_rise) and final_error > 1e-9:
         raise SolverError(f"the solver diverged: cost rose from {initial_error:.6g} to {final_error:.6g}")
     dof = residual_dimension(graph) - values.dim()
     if dof <= 0:

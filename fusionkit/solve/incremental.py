@@ -1,6 +1,14 @@
 """Incremental solvers: iSAM2 and the fixed-lag smoother. Factors enter in time order (the time
 of the latest state they touch; static-only factors first); the wall time of each update is
-recorded as the per-step latency."""
+recorded as the per-step latency.
+
+`warmup: SECONDS` solves the factors of the first SECONDS (from the first state) as one batch
+(Levenberg-Marquardt) and hands the result to the incremental solver in its first update: the
+start-up phase in which static parameters are not yet observable (a VO scale after a few
+millimetres of motion, pulleys before the calibration motion has covered three axes). Added one
+step at a time, such a phase makes Gauss-Newton jump far from the truth (a negative scale), and
+iSAM2 spends the rest of the run relinearizing, or diverges. Its wall time is reported apart
+from the per-step latency."""
 
 from __future__ import annotations
 
@@ -49,6 +57,26 @@ def time_steps(problem: Problem) -> Iterator[tuple[float, gtsam.NonlinearFactorG
         yield t, graph, new
 
 
+def warm_start(problem: Problem, steps: list, seconds: float
+               ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, float, list]:
+    """Merge the time steps up to `seconds` after the first state into one graph, solve it with
+    batch LM from the initial values; returns (graph, its solution, last merged time, the rest)."""
+    from .levenberg import DampingSettings, levenberg_marquardt
+    finite = [t for t, _, _ in steps if np.isfinite(t)]
+    end = (finite[0] if finite else 0.0) + seconds
+    graph, keys, rest = gtsam.NonlinearFactorGraph(), [], []
+    last = float("-inf")
+    for t, factors, new in steps:
+        if t <= end:
+            graph.push_back(factors)
+            keys += new
+            last = t
+        else:
+            rest.append((t, factors, new))
+    values, _ = levenberg_marquardt(graph, value_subset(problem, keys), 1e-6, 1e-9, 100, DampingSettings())
+    return graph, values, last, rest
+
+
 def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
     msg = unconstrained_message(problem, exc)
     if msg is None:
@@ -73,14 +101,21 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     isam = gtsam.ISAM2(_isam2_params(settings))
     latency = []
     start = time.perf_counter()
-    for i, (t, factors, new) in enumerate(time_steps(problem)):
+    steps, warmup = list(time_steps(problem)), 0.0
+    if settings.get("warmup", 0) > 0:
+        tic = time.perf_counter()
+        first, values, t, steps = warm_start(problem, steps, settings["warmup"])
+        _timed_update(problem, t, lambda: isam.update(first, values))
+        warmup = time.perf_counter() - tic
+    for i, (t, factors, new) in enumerate(steps):
         latency.append(_timed_update(problem, t, lambda: isam.update(factors, value_subset(problem, new))))
         if progress and i % 100 == 0:
             progress(i, float("nan"))
     estimate = isam.calculateEstimate()
     seconds = time.perf_counter() - start
     return SolveResult(estimate, "isam2", graph.error(problem.initial), graph.error(estimate), len(latency),
-                       seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance)
+                       seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance,
+                       warmup_seconds=warmup)
 
 
 def solve_fixed_lag(problem: Problem, settings: dict,
@@ -100,7 +135,21 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     latency = []
     start = time.perf_counter()
     now = None
-    for i, (t, factors, new) in enumerate(time_steps(problem)):
+    steps, warm_values, warmup = list(time_steps(problem)), None, 0.0
+    if settings.get("warmup", 0) > 0:
+        tic = time.perf_counter()
+        first, warm_values, t, steps = warm_start(problem, steps, settings["warmup"])
+        steps.insert(0, (t, first, list(warm_values.keys())))
+        # states older than the window leave inside the first update: keep their warm-up solution
+        early = [k for k in warm_values.keys() if problem.key_time[k] != float("-inf")
+                 and problem.key_time[k] < t - lag]
+        marginal = gtsam.Marginals(first, warm_values) if marginal_keys and early else None
+        for k in early:
+            final[k] = problem.keys.decode(k)[0].vartype.read(warm_values, k)
+            if marginal is not None and k in marginal_keys:
+                covariances[k] = marginal.marginalCovariance(k)
+        warmup = time.perf_counter() - tic
+    for i, (t, factors, new) in enumerate(steps):
         now = t if np.isfinite(t) else (now if now is not None else 0.0)
         leaving = [k for k, kt in in_window.items() if kt < now - lag]
         if leaving:
@@ -114,10 +163,14 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         for k in new:
             kt = problem.key_time[k]
             stamps[k] = now if kt == float("-inf") else kt
-            if kt != float("-inf"):
+            if kt != float("-inf") and k not in final:
                 in_window[k] = kt
-        values = value_subset(problem, new)
-        latency.append(_timed_update(problem, now, lambda: smoother.update(factors, values, stamps)))
+        values = warm_values if i == 0 and warm_values is not None else value_subset(problem, new)
+        dt = _timed_update(problem, now, lambda: smoother.update(factors, values, stamps))
+        if i == 0 and warm_values is not None:
+            warmup += dt
+        else:
+            latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
     est = smoother.calculateEstimate()
@@ -129,4 +182,4 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             covariances[k] = smoother.marginalCovariance(k)
     seconds = time.perf_counter() - start
     return SolveResult(estimate, "fixed_lag", graph.error(problem.initial), graph.error(estimate), len(latency),
-                       seconds, covariances=covariances, step_latency=np.asarray(latency))
+                       seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup)

@@ -21,6 +21,7 @@ class SolveResult:
     step_latency: np.ndarray | None = None  # seconds per incremental update
     history: list[float] = field(default_factory=list)
     marginal: Callable[[int], np.ndarray] | None = None  # solver-native marginal covariance, if any
+    warmup_seconds: float = 0.0  # incremental solvers: the batch-solved start-up segment
 
     def stats(self) -> dict:
         out = {"solver": self.solver, "iterations": self.iterations, "seconds": self.seconds,
@@ -30,4 +31,5 @@ class SolveResult:
             lat = self.step_latency * 1e3
             out["step_latency_ms"] = {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)),
                                       "max": float(lat.max()), "steps": int(len(lat))}
+            out["warmup_seconds"] = self.warmup_seconds
         return out
