@@ -5,7 +5,8 @@ baselines measured in the same process.
     python benchmarks/run_all.py --quick    # smaller sizes, well under a minute
     python benchmarks/run_all.py --only factors,isam2
 
-Sections: factors (a), batch (b), isam2 (c), quickstart. See benchmarks/README.md.
+Sections: factors (a), batch (b), isam2 (c), quickstart, cable_rigid (ARAS-CAM accuracy and speed).
+See benchmarks/README.md.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "quickstart")
+SECTIONS = ("factors", "batch", "isam2", "quickstart", "cable_rigid")
 
 
 def _git(*args: str) -> str:
@@ -80,6 +81,9 @@ def summary(results: dict) -> str:
         lines.append(f"quickstart: estimate {q['estimate'] * 1e3:.0f} ms = read {q['read'] * 1e3:.0f} + build "
                      f"{q['build'] * 1e3:.0f} + optimizer {q['optimizer'] * 1e3:.0f} + checks/marginals "
                      f"{(q['solve'] - q['optimizer']) * 1e3:.0f} + post {q['post'] * 1e3:.0f}")
+    if "cable_rigid" in results:
+        import bench_cable_rigid
+        lines += bench_cable_rigid.summary(results["cable_rigid"])
     return "\n".join(lines)
 
 
@@ -94,11 +98,12 @@ def main(argv=None) -> int:
         ap.error(f"unknown section(s) {', '.join(sorted(unknown))}; choose from {', '.join(SECTIONS)}")
 
     import bench_batch
+    import bench_cable_rigid
     import bench_factors
     import bench_isam2
     import bench_quickstart
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "quickstart": bench_quickstart}
+               "quickstart": bench_quickstart, "cable_rigid": bench_cable_rigid}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

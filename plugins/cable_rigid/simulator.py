@@ -2,7 +2,8 @@
 ARAS-CAM: 4 cables, monocular camera on the end-effector, 750 poses at 30 Hz).
 
 The geometry comes from a shipped description (robots/<robot>.yaml). The TRUE pulleys are the
-nominal ones perturbed by `pulley_error` per axis; the encoders are relative and zeroed at the
+nominal ones perturbed by `pulley_error` per axis, then (`coplanar_pulleys`, default) projected
+onto their best-fit plane: pulleys on one frame or ceiling, whose tilt is unknown; the encoders are relative and zeroed at the
 home pose, so the true offsets make the noiseless readings 0 there (l0_i = -(1 - T_i/EA) l*_i at
 home). The trajectory starts at rest at the home pose (x = y = 0, identity orientation), moves
 along x, then y, then z (what the Monte-Carlo self-calibration needs: line -> shell, second axis
@@ -89,6 +90,13 @@ def nominal_geometry(desc: dict) -> Geometry:
     return Geometry(np.asarray(desc["parameters"]["pulley"]["values"], float),
                     np.asarray(cables["attachments"], float), cables.get("stiffness_EA"),
                     float(ee.get("mass", 1.0)), np.asarray(ee.get("com", [0.0, 0.0, 0.0]), float))
+
+
+def onto_best_fit_plane(points: np.ndarray) -> np.ndarray:
+    """Points projected onto their least-squares plane."""
+    centre = points.mean(axis=0)
+    normal = np.linalg.svd(points - centre)[2][-1]
+    return points - np.outer((points - centre) @ normal, normal)
 
 
 # --------------------------------------------------------------------------------------- kinematics
@@ -292,7 +300,7 @@ class CdprSimulator(Simulator):
               "properties": {"robot": {"enum": ["arascam", "cdpr_small"]},
                              "motion": {"enum": ["smooth", "dynamic"]},
                              "duration": POSITIVE, "rate": POSITIVE, "scale": POSITIVE,
-                             "pulley_error": NONNEG,
+                             "pulley_error": NONNEG, "coplanar_pulleys": {"type": "boolean"},
                              "vo_sigma": SIGMA, "dynamic_vo_factor": {"type": "number", "minimum": 1},
                              "encoder_sigma": NONNEG, "tension_resolution": NONNEG, "tension_sigma": NONNEG,
                              "mocap_sigma": SIGMA, "mocap_every": {"type": "integer", "minimum": 1},
@@ -300,7 +308,7 @@ class CdprSimulator(Simulator):
                              "swing_damping": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1}},
               "additionalProperties": False}
     defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
-                "pulley_error": 0.05,
+                "pulley_error": 0.05, "coplanar_pulleys": True,
                 "vo_sigma": {"rotation": 0.001, "translation": 0.0005}, "dynamic_vo_factor": 2.5,
                 "encoder_sigma": 0.001, "tension_resolution": 0.25, "tension_sigma": 0.1,
                 "mocap_sigma": {"rotation": 0.002, "translation": 0.001}, "mocap_every": 1,
@@ -330,6 +338,8 @@ class CdprSimulator(Simulator):
                               "expected at least 10")
         plan = commanded_trajectory(t, desc)
         true_pulleys = nominal.pulleys + rng.normal(0.0, p["pulley_error"], nominal.pulleys.shape)
+        if p["coplanar_pulleys"]:
+            true_pulleys = onto_best_fit_plane(true_pulleys)
         geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
 
         # commanded (quasi-static) pose -> tensions and cable lengths the encoders read

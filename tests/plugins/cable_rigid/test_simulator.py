@@ -300,3 +300,15 @@ def test_written_config_at_default_noise(default_run):
 def test_default_noise_scale_within_3_sigma(default_run):
     """The scaled-VO residual in VO units keeps the scale unbiased even with noisy VO."""
     assert abs(default_run[2]) < 3
+
+
+@pytest.mark.parametrize("coplanar", [True, False])
+def test_true_pulleys_lie_on_one_plane_unless_asked_otherwise(coplanar):
+    """Pulleys on one frame (default): the fourth on the plane of the first three, the plane tilted."""
+    from fusionkit_plugins.cable_rigid.residuals import plane_distance_residual
+    _, out = simulate(coplanar_pulleys=coplanar, pulley_error=0.05)
+    a = np.array(out.truth_calibration["cdpr"]["pulley"]["values"])
+    distance = abs(plane_distance_residual(*a)[0])
+    assert (distance < 1e-12) if coplanar else (distance > 1e-3)
+    normal = np.cross(a[1] - a[0], a[2] - a[0])
+    assert np.degrees(np.arccos(abs(normal[2]) / np.linalg.norm(normal))) > 0.1  # not exactly level
