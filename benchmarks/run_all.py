@@ -5,7 +5,7 @@ baselines measured in the same process.
     python benchmarks/run_all.py --quick    # smaller sizes, well under a minute
     python benchmarks/run_all.py --only factors,isam2
 
-Sections: factors (a), batch (b), isam2 (c), quickstart, cable_rigid (ARAS-CAM accuracy and speed).
+Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed).
 See benchmarks/README.md.
 """
 
@@ -25,7 +25,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "quickstart", "cable_rigid")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid")
 
 
 def _git(*args: str) -> str:
@@ -76,9 +76,9 @@ def summary(results: dict) -> str:
         fk, hw = results["isam2"]["raw"]["fusionkit"], results["isam2"]["raw"]["hand-written"]
         lines.append(f"(c) iSAM2 step latency p50 {fk['p50'] / hw['p50']:.2f}x, p99 {fk['p99'] / hw['p99']:.2f}x; "
                      f"whole solve {fk['solve'] / hw['solve']:.2f}x")
-    if "quickstart" in results:
-        q = next(iter(results["quickstart"]["raw"].values()))
-        lines.append(f"quickstart: estimate {q['estimate'] * 1e3:.0f} ms = read {q['read'] * 1e3:.0f} + build "
+    if "scaled_vo" in results:
+        q = next(iter(results["scaled_vo"]["raw"].values()))
+        lines.append(f"scaled_vo: estimate {q['estimate'] * 1e3:.0f} ms = read {q['read'] * 1e3:.0f} + build "
                      f"{q['build'] * 1e3:.0f} + optimizer {q['optimizer'] * 1e3:.0f} + checks/marginals "
                      f"{(q['solve'] - q['optimizer']) * 1e3:.0f} + post {q['post'] * 1e3:.0f}")
     if "cable_rigid" in results:
@@ -101,9 +101,9 @@ def main(argv=None) -> int:
     import bench_cable_rigid
     import bench_factors
     import bench_isam2
-    import bench_quickstart
+    import bench_scaled_vo
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "quickstart": bench_quickstart, "cable_rigid": bench_cable_rigid}
+               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

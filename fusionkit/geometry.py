@@ -24,3 +24,32 @@ def body_point_range(pose: gtsam.Pose3, b: np.ndarray, a: np.ndarray,
         H[0] = np.concatenate([np.cross(b, ub), ub]).reshape(1, 6)
         H[1] = -u.reshape(1, 3)
     return r
+
+
+def fit_range_origin(points: np.ndarray, ranges: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Where ranges are measured from, and their constant offset: the least-squares a, c of
+    z_k = ||q_k - a|| + c over known points q_k (K, 3) (m). A rigid cable is this model with
+    a = pulley, c = encoder offset; a UWB anchor with a constant bias is too.
+
+    Closed form (linear multilateration): squaring ||q - a|| = z - c gives
+        2 q.a - 2 z c + (c^2 - |a|^2) = |q|^2 - z^2,
+    linear in (a, c, w = c^2 - |a|^2); points and ranges are centred first for conditioning.
+    Returns (a, c, rms of the residuals z - ||q - a|| - c). Raises ValueError when the points do
+    not determine a and c (fewer than 5, or all on one plane or line)."""
+    q, z = np.asarray(points, float), np.asarray(ranges, float)
+    if len(q) < 5:
+        raise ValueError(f"{len(q)} points; a range origin with an offset needs at least 5")
+    q0, z0 = q.mean(axis=0), z.mean()
+    qc, zc = q - q0, z - z0  # in centred coordinates a' = a - q0, c' = c - z0
+    A = np.column_stack([2 * qc, -2 * zc, np.ones(len(q))])
+    b = np.einsum("ki,ki->k", qc, qc) - zc * zc
+    scale = np.abs(A).max(axis=0)
+    scale[scale == 0] = 1.0
+    sol, _, rank, sv = np.linalg.lstsq(A / scale, b, rcond=None)
+    if rank < 5 or sv[-1] < 1e-9 * sv[0]:
+        raise ValueError("the points do not span 3-D space around the origin (rank "
+                         f"{rank}/5): move along all three axes")
+    sol = sol / scale
+    a, c = sol[:3] + q0, sol[3] + z0
+    rms = float(np.sqrt(np.mean((z - np.linalg.norm(q - a, axis=1) - c) ** 2)))
+    return a, float(c), rms

@@ -14,7 +14,8 @@ def _fmt(values, sigma) -> str:
     s = np.atleast_1d(np.asarray(sigma, dtype=float))
     if v.size == 1:
         return f"{v[0]:.5g} ± {s[0]:.2g}"
-    return f"{np.array2string(v, precision=4, separator=', ')} ± {np.array2string(s, precision=2, separator=', ')}"
+    sig = "[" + ", ".join(f"{x:.2g}" for x in s) + "]"  # 2 significant digits, however small
+    return f"{np.array2string(v, precision=4, separator=', ')} ± {sig}"
 
 
 def summary_text(result: RunResult) -> str:

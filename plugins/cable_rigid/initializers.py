@@ -1,6 +1,7 @@
 """Initializers of the cable plugin: `cable.monte_carlo`, the Monte-Carlo self-calibration of the
 pulleys, encoder offsets and VO scale (spec cable_rigid.md, "Initialization"; the method is in
-monte_carlo.py).
+monte_carlo.py), and `cable.multilateration`, pulleys and offsets when the poses are known
+(motion capture): `{type: cable.multilateration, robot: cdpr, lengths: lengths}`.
 
 Config entry (initializers list, before `pose.dead_reckoning` with the same `scale`, so the poses
 start at the scale found here; after the factors, so `pose.origin` has set the first pose):
@@ -30,6 +31,7 @@ from scipy.spatial.transform import Rotation
 from fusionkit import Initializer, Spec
 from fusionkit.data.association import interpolate_poses, nearest
 from fusionkit.data.stream import POSE_COLUMNS
+from fusionkit.geometry import fit_range_origin
 
 from .factors import check_cdpr, length_columns
 from .model import cable_robot
@@ -97,14 +99,7 @@ class MonteCarloCalibration(Initializer):
         desc = ctx.robot(robot)
         cdpr = cable_robot(desc)
         states = ctx.state_set(robot, spec)
-        lengths = ctx.stream(spec["lengths"])
-        assoc = nearest(states.t, lengths.t, spec.get("tolerance", 0.005))
-        if len(assoc.state) < MIN_SAMPLES:
-            raise spec.error("lengths", f"only {len(assoc.state)} samples of stream {lengths.name!r} match a state "
-                             f"of {robot!r}; the Monte-Carlo calibration needs at least {MIN_SAMPLES}")
-        ks = assoc.state
-        columns = length_columns(spec, cdpr.n)
-        z = np.array([lengths.column(col)[assoc.row] for col in columns])  # (n, K)
+        ks, z = length_samples(ctx, spec, states.t, cdpr.n)
 
         # end-effector poses X0 o (R_k, s t_k): VO relative to state 0, at the state times
         vo = ctx.stream(spec["stream"])
@@ -141,6 +136,57 @@ class MonteCarloCalibration(Initializer):
         report = diagnostic(cal, offsets, spec, states.t[ks])
         ctx.add_diagnostic(spec.label, report)
         ctx.add_plot("monte_carlo_belief", lambda path: draw_belief(cal, path))
+
+
+def length_samples(ctx, spec: Spec, t: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The states with an encoder sample of stream `lengths` (nearest stamp within `tolerance`,
+    default 5 ms) and the readings there: (state indices (K,), lengths (n, K) in m)."""
+    lengths = ctx.stream(spec["lengths"])
+    assoc = nearest(t, lengths.t, spec.get("tolerance", 0.005))
+    if len(assoc.state) < MIN_SAMPLES:
+        raise spec.error("lengths", f"only {len(assoc.state)} samples of stream {lengths.name!r} match a state "
+                         f"of {spec['robot']!r}; {spec.type} needs at least {MIN_SAMPLES}")
+    z = np.array([lengths.column(col)[assoc.row] for col in length_columns(spec, n)])
+    return assoc.state, z
+
+
+class Multilateration(Initializer):
+    name = "cable.multilateration"
+    summary = ("pulleys and encoder offsets from known end-effector poses (motion capture) and the encoders: "
+               "closed-form sphere fit per cable")
+    robot_fields = ("robot",)
+    stream_fields = ("lengths",)
+    schema = {"type": "object",
+              "properties": {"robot": {"type": "string"}, "lengths": {"type": "string"},
+                             "columns": {"type": "array", "items": {"type": "string"}},
+                             "tolerance": NONNEG},
+              "required": ["robot", "lengths"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        n = check_cdpr(spec, scope)
+        scope.require_states(spec, "robot", "pose3")
+        scope.require_columns(spec, "lengths", tuple(length_columns(spec, n)))
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        """Cable i: z_ik = ||R_k b_i + t_k - a_i|| + l0_i at the poses' current initial values
+        (place it after the initializer that sets them, e.g. pose.interpolate of the mocap)."""
+        robot = spec["robot"]
+        cdpr = cable_robot(ctx.robot(robot))
+        ks, z = length_samples(ctx, spec, ctx.state_set(robot, spec).t, cdpr.n)
+        poses = [ctx.initial.atPose3(ctx.pose_key(robot, int(k))) for k in ks]
+        R = np.array([p.rotation().matrix() for p in poses])
+        t = np.array([p.translation() for p in poses])
+        lines = []
+        for i in range(cdpr.n):
+            try:
+                a, l0, rms = fit_range_origin(R @ cdpr.attachments[i] + t, z[i])
+            except ValueError as exc:
+                raise spec.error("lengths", f"cable {i}: {exc}") from None
+            ctx.set_initial(ctx.parameter(robot, "pulley", i), a)
+            ctx.set_initial(ctx.parameter(robot, "offset", i), l0)
+            lines.append(f"cable {i}: pulley ({', '.join(f'{x:.3f}' for x in a)}), offset {l0:.4f} m; "
+                         f"fit rms {rms * 1e3:.2f} mm over {len(ks)} poses")
+        ctx.add_diagnostic(spec.label, {"verdict": lines})
 
 
 def diagnostic(cal: Calibration, offsets: np.ndarray, spec: Spec, t: np.ndarray) -> dict:
@@ -215,9 +261,10 @@ def draw_belief(cal: Calibration, path) -> None:
                                  fontsize=8, loc="left")
     fig.suptitle(f"Monte-Carlo belief of the pulleys (+: final estimate); VO scale {cal.scale:.4f} "
                  f"+- {cal.scale_sigma:.4f}; stages end at poses {', '.join(map(str, cal.stage_poses))}", fontsize=10)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.04, right=0.99, bottom=0.05, top=1 - 0.75 / fig.get_figheight(),
+                        wspace=0.35, hspace=0.55)  # fixed margins: tight_layout costs ~2 s on 24 axes
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
-INITIALIZERS = [MonteCarloCalibration]
+INITIALIZERS = [MonteCarloCalibration, Multilateration]

@@ -31,7 +31,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 from scipy.optimize import brentq, nnls
-from scipy.signal import cont2discrete, lfilter
 from scipy.spatial.transform import Rotation
 
 from fusionkit import Simulator, SourceOutput
@@ -239,6 +238,8 @@ def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: 
                    damping: float) -> np.ndarray:
     """(N, 2) horizontal deviation of a damped pendulum (natural `frequency` Hz, damping ratio
     `damping`) driven by the commanded horizontal acceleration, scaled to a peak of `amplitude`."""
+    from scipy.signal import cont2discrete, lfilter  # lazy: scipy.signal takes ~1 s to import
+
     dt = float(t[1] - t[0])
     acc = np.gradient(np.gradient(pos[:, :2], dt, axis=0), dt, axis=0)
     w = 2 * np.pi * frequency

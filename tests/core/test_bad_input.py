@@ -19,7 +19,7 @@ from fusionkit.simulate import write_dataset
 from fusionkit.solve.checks import check_solution
 
 REPO = Path(__file__).resolve().parents[2]
-QUICKSTART = REPO / "configs" / "quickstart.yaml"
+SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
 ROBOT = REPO / "robots" / "handheld_camera.yaml"
 FAST = ["--set", "sources.0.params.duration=5"]
 PREFIX = "fusionkit: error: "
@@ -87,12 +87,12 @@ def run(config: Path, out: Path, *extra: str) -> list[str]:
     return ["run", str(config), "--out", str(out), "--no-plots", *extra]
 
 
-def quickstart_copy(tmp_path: Path) -> Path:
-    """configs/quickstart.yaml and robots/handheld_camera.yaml copied side by side as in the repository."""
+def scaled_vo_copy(tmp_path: Path) -> Path:
+    """configs/scaled_vo_mocap.yaml and robots/handheld_camera.yaml copied side by side as in the repository."""
     (tmp_path / "configs").mkdir(parents=True)
     (tmp_path / "robots").mkdir()
     shutil.copy(ROBOT, tmp_path / "robots")
-    return Path(shutil.copy(QUICKSTART, tmp_path / "configs" / "quickstart.yaml"))
+    return Path(shutil.copy(SCALED_VO, tmp_path / "configs" / "scaled_vo_mocap.yaml"))
 
 
 def csv_dataset(ds: Path, text: str | None = None, columns: list[str] | None = None) -> Path:
@@ -137,7 +137,7 @@ def test_config_that_is_a_folder_or_not_text(tmp_path, out, capsys):
 
 
 def test_config_without_read_permission(tmp_path, out, capsys, monkeypatch):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     original = pathlib.Path.read_text
 
     def read_text(self, *args, **kwargs):  # chmod 000 does not stop root, so refuse the read here
@@ -190,7 +190,7 @@ def test_validate_reports_missing_files_too(ds, capsys):
 
 
 def test_yaml_syntax_error_in_config(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "solver: {type: batch, method: lm}", "solver: {type: batch, method: lm")
     line = len(config.read_text().splitlines()) + 1  # the flow mapping is still open at the end of the file
     assert fails(capsys, run(config, out), out=out) == \
@@ -198,7 +198,7 @@ def test_yaml_syntax_error_in_config(tmp_path, out, capsys):
 
 
 def test_yaml_bad_indentation_in_config(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "    states: {stream: vo}", "   states: {stream: vo}")
     line = line_of(config, "   states: {stream: vo}")
     message = fails(capsys, run(config, out), out=out)
@@ -214,7 +214,7 @@ def test_yaml_syntax_error_in_robot_description(ds, out, capsys):
 
 
 def test_duplicate_key(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "seed: 7", "seed: 7\n    seed: 8")
     first, second = line_of(config, "seed: 7"), line_of(config, "seed: 8")
     assert fails(capsys, run(config, out), out=out) == (
@@ -226,7 +226,7 @@ def test_duplicate_key(tmp_path, out, capsys):
 
 
 def test_unknown_top_level_key(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "solver: {", "solvr: {")
     assert fails(capsys, run(config, out), out=out) == (
         f"{config}:{line_of(config, 'solvr:')}: solvr: unknown key 'solvr'; accepted keys: factors, initializers, "
@@ -234,7 +234,7 @@ def test_unknown_top_level_key(tmp_path, out, capsys):
 
 
 def test_unknown_factor_key(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "    sensor: marker\n", "    sensor: marker\n    sigmaa: 1\n")
     assert fails(capsys, run(config, out), out=out) == (
         f"{config}:{line_of(config, 'sigmaa')}: factors[1].sigmaa: unknown key 'sigmaa'; accepted keys: label, "
@@ -254,7 +254,7 @@ def test_unknown_key_in_robot_description(ds, out, capsys):
     ("type: pose.dead_reckoning", "type: pose.reckoning", "initializers[1].type", "initializer 'pose.reckoning'"),
 ])
 def test_unknown_plugin_type_lists_installed(tmp_path, out, capsys, old, new, key, kind):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, old, new)
     message = fails(capsys, run(config, out), out=out)
     assert message.startswith(f"{config}:{line_of(config, new)}: {key}: unknown {kind}; installed: ")
@@ -267,13 +267,13 @@ def test_unknown_plugin_type_lists_installed(tmp_path, out, capsys, old, new, ke
 
 
 def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "scenario: pose.scaled_vo", "scenario: pose.scaled")
     message = fails(capsys, run(config, out), out=out)
     assert message.startswith(f"{config}:{line_of(config, 'scenario')}: sources[0].scenario: unknown scenario "
                               "'pose.scaled'; installed: ")
     assert "pose.scaled_vo" in message and "pose.two_robots" in message
-    config = quickstart_copy(tmp_path / "b")
+    config = scaled_vo_copy(tmp_path / "b")
     robot = rewrite(tmp_path / "b" / "robots" / "handheld_camera.yaml", "model: generic", "model: humanoid")
     shown = tmp_path / "b" / "configs" / ".." / "robots" / "handheld_camera.yaml"
     message = fails(capsys, run(config, out), out=out)
@@ -310,13 +310,13 @@ def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
     ("seed: 7", "seed: 7.5", "sources[0].seed", "got 7.5; expected an integer"),
 ])
 def test_mistyped_parameter(tmp_path, out, capsys, old, new, key, what):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, old, new)
     assert fails(capsys, run(config, out), out=out) == f"{config}:{line_of(config, new)}: {key}: {what}"
 
 
 def test_missing_sigma(tmp_path, out, capsys):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, "    sigma: {rotation: 0.01, translation: 0.01}\n", "")
     line = line_of(config, "type: pose.absolute")
     assert fails(capsys, run(config, out), out=out) == (
@@ -336,7 +336,7 @@ def test_missing_sigma(tmp_path, out, capsys):
      "sensors.marker.mount.translation", "got [0.0, 0.05]; expected a list of 3 numbers"),
 ])
 def test_mistyped_robot_parameter(tmp_path, out, capsys, old, new, at, key, what):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     robot = rewrite(tmp_path / "robots" / "handheld_camera.yaml", old, new)
     shown = tmp_path / "configs" / ".." / "robots" / "handheld_camera.yaml"  # as the config spells it
     assert fails(capsys, run(config, out), out=out) == f"{shown}:{line_of(robot, at)}: {key}: {what}"
@@ -353,7 +353,7 @@ def test_mistyped_robot_parameter(tmp_path, out, capsys, old, new, at, key, what
      "scale: scale}", "initializers[0].scale", "robot 'cam' has no parameter 'scale'; it has: vo_scale"),
 ])
 def test_references_to_unknown_names(tmp_path, out, capsys, old, new, at, key, what):
-    config = quickstart_copy(tmp_path)
+    config = scaled_vo_copy(tmp_path)
     rewrite(config, old, new)
     assert fails(capsys, run(config, out), out=out) == f"{config}:{line_of(config, at)}: {key}: {what}"
 
@@ -372,7 +372,7 @@ def test_references_to_unknown_names(tmp_path, out, capsys, old, new, at, key, w
     ("name.first=x", "--set name.first: parent is not a mapping or list"),
 ])
 def test_bad_override_paths(out, capsys, assignment, message):
-    assert fails(capsys, run(QUICKSTART, out, *FAST, "--set", assignment), out=out) == message
+    assert fails(capsys, run(SCALED_VO, out, *FAST, "--set", assignment), out=out) == message
 
 
 @pytest.mark.parametrize("assignment, key, what", [
@@ -384,8 +384,8 @@ def test_bad_override_paths(out, capsys, assignment, message):
                                      "relinearize_threshold, type, warmup")),
 ])
 def test_bad_override_values_name_the_set(out, capsys, assignment, key, what):
-    assert fails(capsys, run(QUICKSTART, out, *FAST, "--set", assignment), out=out) == \
-        f"{QUICKSTART}: {key}: {what} (from --set {assignment})"
+    assert fails(capsys, run(SCALED_VO, out, *FAST, "--set", assignment), out=out) == \
+        f"{SCALED_VO}: {key}: {what} (from --set {assignment})"
 
 
 # ---------------------------------------------------------------- 5. CSV and TUM data
@@ -470,8 +470,8 @@ def test_truth_trajectory_with_nan(ds, out, capsys):
 
 
 def _odometry_only(tmp_path: Path) -> Path:
-    """The quickstart without motion capture: relative VO only, nothing fixes the first pose."""
-    config = quickstart_copy(tmp_path)
+    """The scaled-VO config without motion capture: relative VO only, nothing fixes the first pose."""
+    config = scaled_vo_copy(tmp_path)
     data = yaml.safe_load(config.read_text())
     data["factors"] = data["factors"][:1]
     data["initializers"] = []
@@ -519,8 +519,8 @@ def test_origin_prior_makes_the_odometry_only_graph_valid(tmp_path, capsys):
 
 def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
     tiny = [f"factors.{i}.sigma.{axis}=1e-4" for i in (0, 1) for axis in ("rotation", "translation")]
-    message = fails(capsys, run(QUICKSTART, out, *FAST, *[arg for s in tiny for arg in ("--set", s)]), out=out)
-    assert message.startswith(f"{QUICKSTART}: the solver stopped with a large residual: chi-square per degree of "
+    message = fails(capsys, run(SCALED_VO, out, *FAST, *[arg for s in tiny for arg in ("--set", s)]), out=out)
+    assert message.startswith(f"{SCALED_VO}: the solver stopped with a large residual: chi-square per degree of "
                               "freedom ")
     ratio = float(message.split("chi-square per degree of freedom ")[1].split(" ")[0])
     assert ratio > 100
@@ -530,7 +530,7 @@ def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
 
 
 def test_max_cost_ratio_is_the_limit(out, capsys):
-    message = fails(capsys, run(QUICKSTART, out, *FAST, "--set", "solver.max_cost_ratio=0.5"), out=out)
+    message = fails(capsys, run(SCALED_VO, out, *FAST, "--set", "solver.max_cost_ratio=0.5"), out=out)
     assert "the limit is solver.max_cost_ratio=0.5)" in message
     ratio = float(message.split("chi-square per degree of freedom ")[1].split(" ")[0])
     assert 0.5 < ratio < 10  # the same run passes with the default limit of 10
@@ -553,7 +553,7 @@ def test_divergence_is_reported(initial, final, message):
 def test_out_that_is_a_file_fails_before_solving(tmp_path, capsys):
     target = tmp_path / "result"
     target.write_text("keep me")
-    assert fails(capsys, run(QUICKSTART, target, *FAST)) == (
+    assert fails(capsys, run(SCALED_VO, target, *FAST)) == (
         f"--out {target}: exists and is not a folder; expected a folder path (created, or replaced only when "
         "everything succeeded)")
     assert target.read_text() == "keep me"
@@ -567,7 +567,7 @@ def test_failed_run_keeps_the_previous_output(tmp_path, capsys):
     target = tmp_path / "result"
     target.mkdir()
     (target / "report.json").write_text("{}")
-    fails(capsys, run(QUICKSTART, target, *FAST, "--set", "solver.type=nope"), "solver.type: got 'nope'")
+    fails(capsys, run(SCALED_VO, target, *FAST, "--set", "solver.type=nope"), "solver.type: got 'nope'")
     assert [p.name for p in target.iterdir()] == ["report.json"]
     assert [p.name for p in tmp_path.iterdir()] == ["result"]
 

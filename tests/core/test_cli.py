@@ -16,16 +16,16 @@ from fusionkit.cli.main import main
 from fusionkit.data.files import read_tum
 
 REPO = Path(__file__).resolve().parents[2]
-QUICKSTART = REPO / "configs" / "quickstart.yaml"
+SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
 FAST = ["--set", "sources.0.params.duration=5"]
 
 
-def test_validate_quickstart_prints_stream_and_factor_counts(capsys):
-    assert main(["validate", str(QUICKSTART), *FAST]) == 0
+def test_validate_scaled_vo_prints_stream_and_factor_counts(capsys):
+    assert main(["validate", str(SCALED_VO), *FAST]) == 0
     captured = capsys.readouterr()
     assert captured.err == ""
     lines = captured.out.splitlines()
-    assert lines[0] == f"{QUICKSTART}: OK"
+    assert lines[0] == f"{SCALED_VO}: OK"
     pose_columns = "columns x, y, z, qx, qy, qz, qw"
     # 5 s at 30 Hz -> 150 VO frames; motion capture every 2 s -> t = 0, 2, 4
     assert f"  stream vo: 150 samples, t = 0.000 .. 4.967 s, {pose_columns}" in lines
@@ -37,25 +37,25 @@ def test_validate_quickstart_prints_stream_and_factor_counts(capsys):
     assert "  151 variables, 153 factors; every variable is constrained" in lines
 
 
-def test_validate_full_quickstart(capsys):
-    assert main(["validate", str(QUICKSTART)]) == 0
+def test_validate_full_scaled_vo(capsys):
+    assert main(["validate", str(SCALED_VO)]) == 0
     out = capsys.readouterr().out
     assert "  stream vo: 750 samples, t = 0.000 .. 24.967 s" in out
     assert "  stream mocap: 13 samples, t = 0.000 .. 24.000 s" in out
     assert "  751 variables, 763 factors; every variable is constrained" in out
 
 
-def test_run_quickstart_writes_outputs(tmp_path, capsys):
+def test_run_scaled_vo_writes_outputs(tmp_path, capsys):
     out = tmp_path / "result"
-    assert main(["run", str(QUICKSTART), *FAST, "--out", str(out), "--no-plots"]) == 0
+    assert main(["run", str(SCALED_VO), *FAST, "--out", str(out), "--no-plots"]) == 0
     captured = capsys.readouterr()
     assert captured.err == ""
-    assert captured.out.startswith("fusionkit: quickstart: batch-lm, ")
+    assert captured.out.startswith("fusionkit: scaled_vo_mocap: batch-lm, ")
     assert f"  outputs: {out}/" in captured.out
     assert sorted(p.name for p in out.iterdir()) == ["calibration.yaml", "report.json", "trajectories"]
     assert [p.name for p in tmp_path.iterdir()] == ["result"]  # no temporary folder left beside it
     report = json.loads((out / "report.json").read_text())
-    assert report["name"] == "quickstart"
+    assert report["name"] == "scaled_vo_mocap"
     assert report["problem"]["factors"] == 153 and report["problem"]["variables"] == 151
     assert report["problem"]["states"] == {"cam": 150}
     assert report["solver"]["solver"] == "batch-lm"
@@ -74,7 +74,7 @@ def test_run_replaces_an_existing_output_folder(tmp_path, capsys):
     out = tmp_path / "result"
     out.mkdir()
     (out / "stale.txt").write_text("old run")
-    assert main(["run", str(QUICKSTART), *FAST, "--out", str(out), "--no-plots"]) == 0
+    assert main(["run", str(SCALED_VO), *FAST, "--out", str(out), "--no-plots"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["calibration.yaml", "report.json", "trajectories"]
     assert [p.name for p in tmp_path.iterdir()] == ["result"]
 
@@ -83,7 +83,7 @@ def test_run_replaces_an_existing_output_folder(tmp_path, capsys):
 def test_run_with_solver_overrides(tmp_path, capsys, solver, name):
     out = tmp_path / "o"
     extra = ["--set", "solver.method=gn"] if name == "batch-gn" else []
-    assert main(["run", str(QUICKSTART), *FAST, "--set", f"solver.type={solver}", *extra, "--out", str(out),
+    assert main(["run", str(SCALED_VO), *FAST, "--set", f"solver.type={solver}", *extra, "--out", str(out),
                  "--no-plots"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["solver"]["solver"] == name
@@ -95,7 +95,7 @@ def test_set_changes_a_factor_sigma(tmp_path, capsys):
     costs = []
     for sigma in ("0.002", "0.01"):
         out = tmp_path / sigma
-        assert main(["run", str(QUICKSTART), *FAST, "--set", f"factors.0.sigma.rotation={sigma}",
+        assert main(["run", str(SCALED_VO), *FAST, "--set", f"factors.0.sigma.rotation={sigma}",
                      "--out", str(out), "--no-plots"]) == 0
         costs.append(json.loads((out / "report.json").read_text())["final_cost"])
     assert costs[1] < costs[0]
@@ -171,10 +171,10 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 
 def test_subprocess_validate_and_run(tmp_path):
-    proc = _cli("validate", str(QUICKSTART), *FAST, cwd=tmp_path)
+    proc = _cli("validate", str(SCALED_VO), *FAST, cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr == ""
     assert "151 variables, 153 factors; every variable is constrained" in proc.stdout
-    proc = _cli("run", str(QUICKSTART), *FAST, "--no-plots", cwd=tmp_path)
+    proc = _cli("run", str(SCALED_VO), *FAST, "--no-plots", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
-    assert (tmp_path / "out" / "quickstart" / "report.json").is_file()  # default: out/<config name>
+    assert (tmp_path / "out" / "scaled_vo_mocap" / "report.json").is_file()  # default: out/<config name>

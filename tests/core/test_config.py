@@ -14,7 +14,7 @@ from fusionkit.config.yamlio import Document, format_path, load_yaml, parse_yaml
 from fusionkit.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
-QUICKSTART = REPO / "configs" / "quickstart.yaml"
+SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
 FAST = "sources.0.params.duration=5"
 
 
@@ -191,10 +191,10 @@ def test_apply_override_errors(assignment, message):
 # ---------------------------------------------------------------- load_config
 
 
-def test_quickstart_loads_with_overrides_applied():
-    config = load_config(QUICKSTART, [FAST, "solver.type=isam2", "factors.0.sigma.rotation=0.01",
+def test_scaled_vo_loads_with_overrides_applied():
+    config = load_config(SCALED_VO, [FAST, "solver.type=isam2", "factors.0.sigma.rotation=0.01",
                                       "factors[1].sigma.translation=2e-2"])
-    assert config.name == "quickstart" and config.seed == 0
+    assert config.name == "scaled_vo_mocap" and config.seed == 0
     assert config.solver == {"type": "isam2", "method": "lm"}
     assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.0016}
     assert config.factors[1]["sigma"] == {"rotation": 0.01, "translation": 0.02}
@@ -203,40 +203,40 @@ def test_quickstart_loads_with_overrides_applied():
     assert config.robots["cam"].description.parameters["vo_scale"].values == [1.0]
     assert config.stream_columns == {"vo": ("x", "y", "z", "qx", "qy", "qz", "qw"),
                                      "mocap": ("x", "y", "z", "qx", "qy", "qz", "qw")}
-    assert config.base_dir == QUICKSTART.parent
+    assert config.base_dir == SCALED_VO.parent
 
 
 def test_errors_in_overridden_values_point_at_the_set_not_at_a_file_line():
     with pytest.raises(ConfigError) as err:
-        load_config(QUICKSTART, ["factors.0.sigma.rotation=abc"])
-    assert str(err.value) == (f"{QUICKSTART}: factors[0].sigma.rotation: got 'abc'; expected a number > 0 "
+        load_config(SCALED_VO, ["factors.0.sigma.rotation=abc"])
+    assert str(err.value) == (f"{SCALED_VO}: factors[0].sigma.rotation: got 'abc'; expected a number > 0 "
                               "(from --set factors.0.sigma.rotation=abc)")
     assert err.value.line is None
     with pytest.raises(ConfigError) as err:
-        load_config(QUICKSTART, ["solver.typo=1"])
-    assert str(err.value).startswith(f"{QUICKSTART}: solver.typo: unknown key 'typo'; accepted keys: absolute_tolerance")
+        load_config(SCALED_VO, ["solver.typo=1"])
+    assert str(err.value).startswith(f"{SCALED_VO}: solver.typo: unknown key 'typo'; accepted keys: absolute_tolerance")
     assert str(err.value).endswith("(from --set solver.typo=1)")
     # an error elsewhere keeps its file line even when --set was used
     with pytest.raises(ConfigError) as err:
-        load_config(QUICKSTART, ["solver.type=isam2", "factors.1.stream=gps"])
-    assert str(err.value).startswith(f"{QUICKSTART}: factors[1].stream: unknown stream 'gps'")
+        load_config(SCALED_VO, ["solver.type=isam2", "factors.1.stream=gps"])
+    assert str(err.value).startswith(f"{SCALED_VO}: factors[1].stream: unknown stream 'gps'")
     with pytest.raises(ConfigError) as err:
-        load_config(QUICKSTART, ["initializers.0.anchor=gps"])
-    assert str(err.value) == (f"{QUICKSTART}: initializers[0].anchor: unknown stream 'gps'; the sources provide: "
+        load_config(SCALED_VO, ["initializers.0.anchor=gps"])
+    assert str(err.value) == (f"{SCALED_VO}: initializers[0].anchor: unknown stream 'gps'; the sources provide: "
                               "mocap, vo (from --set initializers.0.anchor=gps)")
 
 
-def _copy_quickstart(tmp_path: Path) -> Path:
+def _copy_scaled_vo(tmp_path: Path) -> Path:
     (tmp_path / "configs").mkdir()
     (tmp_path / "robots").mkdir()
     shutil.copy(REPO / "robots" / "handheld_camera.yaml", tmp_path / "robots")
-    target = tmp_path / "configs" / "quickstart.yaml"
-    shutil.copy(QUICKSTART, target)
+    target = tmp_path / "configs" / "scaled_vo_mocap.yaml"
+    shutil.copy(SCALED_VO, target)
     return target
 
 
 def test_robot_description_unknown_key_lists_all_accepted_keys(tmp_path):
-    config = _copy_quickstart(tmp_path)
+    config = _copy_scaled_vo(tmp_path)
     robot = tmp_path / "robots" / "handheld_camera.yaml"
     robot.write_text(robot.read_text().replace("frames: [world, body]", "frame: [world, body]"))
     with pytest.raises(ConfigError) as err:
@@ -247,7 +247,7 @@ def test_robot_description_unknown_key_lists_all_accepted_keys(tmp_path):
 
 
 def test_truth_file_that_is_a_folder(tmp_path):
-    config = _copy_quickstart(tmp_path)
+    config = _copy_scaled_vo(tmp_path)
     (tmp_path / "configs" / "truth.tum").mkdir()
     with pytest.raises(ConfigError) as err:
         load_config(config, ["truth.trajectories.cam=truth.tum"])

@@ -1,4 +1,4 @@
-"""Every solver recovers the quickstart's VO scale and trajectory; batch methods agree with each
+"""Every solver recovers the scaled-VO config's scale and trajectory; batch methods agree with each
 other, incremental ones with batch; incremental solvers record per-step latency; the marginal
 covariances are honest over repeated simulations."""
 
@@ -13,7 +13,7 @@ import fusionkit
 from fusionkit.graph.variables import POSE3
 from fusionkit.solve.incremental import time_steps
 
-QUICKSTART = Path(__file__).resolve().parents[2] / "configs" / "quickstart.yaml"
+SCALED_VO = Path(__file__).resolve().parents[2] / "configs" / "scaled_vo_mocap.yaml"
 SHORT = ["sources.0.params.duration=8"]
 TRUE_SCALE = 2.5
 SOLVERS = {
@@ -32,7 +32,7 @@ WARMUP = ("isam2_warmup", "fixed_lag_warmup")
 
 @pytest.fixture(scope="module")
 def runs() -> dict:
-    return {name: fusionkit.run(QUICKSTART, SHORT + extra) for name, extra in SOLVERS.items()}
+    return {name: fusionkit.run(SCALED_VO, SHORT + extra) for name, extra in SOLVERS.items()}
 
 
 def scale_of(result) -> tuple[float, float]:
@@ -148,7 +148,7 @@ def test_scale_sigma_is_honest_over_seeds():
     100 seeds: 96%, z standard deviation 1.00); an over- or under-confident covariance fails."""
     z = []
     for seed in range(100, 120):
-        result = fusionkit.run(QUICKSTART, SHORT + [f"sources.0.seed={seed}"])
+        result = fusionkit.run(SCALED_VO, SHORT + [f"sources.0.seed={seed}"])
         scale, sigma = scale_of(result)
         z.append((scale - TRUE_SCALE) / sigma)
     z = np.abs(np.asarray(z))

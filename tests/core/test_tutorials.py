@@ -33,7 +33,7 @@ def run_tutorial(md: Path, workdir: Path) -> None:
 def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
     run_tutorial(md, tmp_path)
-    if md.stem == "quickstart":
+    if md.stem == "scaled_vo":
         truth = yaml.safe_load((tmp_path / "out/sim/truth/calibration.yaml").read_text())
         true_scale = truth["robots"]["cam"]["vo_scale"]["value"]
         for folder in ("sim_result", "sim_isam2", "sim_again"):

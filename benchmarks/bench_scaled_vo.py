@@ -1,5 +1,5 @@
-"""Quickstart end to end: config load, result.timings of estimate(), the rest of estimate() (post),
-and writing the outputs (as `fusionkit run` does) without and with plots. Also the same config with
+"""The scaled-VO example (configs/scaled_vo_mocap.yaml) end to end: config load, result.timings of
+estimate(), the rest of estimate() (post), and writing the outputs (as `fusionkit run` does) without and with plots. Also the same config with
 marginals off and with the iSAM2 solver, whose per-step latency is split into the first and last
 10% of the steps (growth with the number of variables shows up there)."""
 
@@ -18,7 +18,7 @@ from fusionkit.report.outputs import write_outputs
 
 from _timing import ms, table
 
-QUICKSTART = Path(__file__).resolve().parent.parent / "configs" / "quickstart.yaml"
+SCALED_VO = Path(__file__).resolve().parent.parent / "configs" / "scaled_vo_mocap.yaml"
 
 VARIANTS = [
     ("batch lm, marginals on (as shipped)", []),
@@ -29,7 +29,7 @@ VARIANTS = [
 
 def _once(overrides: list[str], write: bool) -> dict:
     tic = time.perf_counter()
-    config = fusionkit.load_config(QUICKSTART, overrides)
+    config = fusionkit.load_config(SCALED_VO, overrides)
     load = time.perf_counter() - tic
     tic = time.perf_counter()
     result = estimate(config)
@@ -80,13 +80,13 @@ def run(quick: bool = False) -> dict:
             lat_rows.append([name, f"{m['p50'] * 1e3:.3f}", f"{m['p99'] * 1e3:.3f}", f"{m['first'] * 1e3:.3f}",
                              f"{m['last'] * 1e3:.3f}", f"{m['last'] / m['first']:.1f}x"])
     first = raw[VARIANTS[0][0]]
-    text = table(["quickstart variant", "load ms", "read_s", "build_s", "solve_s (optimizer)",
+    text = table(["scaled_vo variant", "load ms", "read_s", "build_s", "solve_s (optimizer)",
                   "checks+marginals", "post", "estimate ms", "write ms", "write+plots ms", "iters/steps"], rows,
-                 f"quickstart end to end ({int(first['states'])} states, {int(first['factors'])} factors; "
+                 f"scaled_vo_mocap end to end ({int(first['states'])} states, {int(first['factors'])} factors; "
                  f"median of {repeats}; ms)")
     if lat_rows:
         text += "\n\n" + table(["variant", "p50 ms", "p99 ms", "first 10% mean ms", "last 10% mean ms", "growth"],
-                               lat_rows, "quickstart iSAM2 step latency (Python CustomFactors)")
+                               lat_rows, "scaled_vo_mocap iSAM2 step latency (Python CustomFactors)")
     text += "".join(f"\n{f}" for f in failures)
     text += ("\nread_s/build_s/solve_s come from result.timings; checks+marginals = solve_and_marginals_s - solve_s; "
              "post = the rest of estimate(); write = write_outputs(plots=False), write+plots = plots=True.")
