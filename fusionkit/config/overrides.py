@@ -20,17 +20,21 @@ def parse_key_path(text: str) -> tuple:
     return tuple(parts)
 
 
-def _index(key: str, part, node: list) -> int:
-    """`part` as an index into the list `node`, or a ConfigError saying which indices exist."""
-    if not isinstance(part, int) or part >= len(node):
+def _index(key: str, part, node: list, append: bool = False) -> int:
+    """`part` as an index into the list `node` (with `append`, len(node) adds an item), or a
+    ConfigError saying which indices exist."""
+    if not isinstance(part, int) or part > len(node) or (part == len(node) and not append):
         what = f"index {part} out of range" if isinstance(part, int) else f"{part!r} is not a list index"
         valid = f"0..{len(node) - 1}" if node else "none: the list is empty"
+        if append:
+            valid += f", or {len(node)} to append"
         raise ConfigError(f"--set {key}: {what} (the list has {len(node)} item(s); indices: {valid})")
     return part
 
 
 def apply_override(data: dict, assignment: str) -> tuple:
-    """Apply one `key.path=value` and return the key path; the value is parsed as YAML (safe)."""
+    """Apply one `key.path=value` and return the key path; the value is parsed as YAML (safe).
+    A last index one past the end of a list appends (`factors.3={type: ...}` on 3 factors)."""
     if "=" not in assignment:
         raise ConfigError(f"--set {assignment!r}: expected key.path=value")
     key, _, raw = assignment.partition("=")
@@ -52,7 +56,11 @@ def apply_override(data: dict, assignment: str) -> tuple:
         node = node[part]
     last = path[-1]
     if isinstance(node, list):
-        node[_index(key, last, node)] = value
+        i = _index(key, last, node, append=True)
+        if i == len(node):
+            node.append(value)
+        else:
+            node[i] = value
     elif isinstance(node, dict):
         node[last] = value
     else:

@@ -140,6 +140,10 @@ class ElasticCableLength(FactorType):
         columns = length_columns(spec, cdpr.n)
         tcols = spec.get("tension_columns") or [f"T{i}" for i in range(cdpr.n)]
         offsets = desc.parameters["offset"].values
+        without = sum(k not in tension_row for k in a_len.state)
+        if without:
+            ctx.notes.append(f"{spec.label}: {without} of {len(a_len.state)} length samples had no tension sample "
+                             f"at their state and were not used")
         for i in spec.get("cables", range(cdpr.n)):
             pulley, offset = ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "offset", i)
             z_all, t_all = lengths.column(columns[i]), tensions.column(tcols[i])

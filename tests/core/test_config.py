@@ -165,19 +165,25 @@ def test_apply_override_sets_parses_and_creates():
     apply_override(data, "seed=42")
     apply_override(data, "factors.0.robust={kernel: huber, k: 1.5}")
     apply_override(data, "name=")
+    apply_override(data, "factors.1={type: cable.pulley_distance, distance: 4.0}")  # one past the end appends
+    apply_override(data, "initializers.0={type: pose.interpolate}")  # a missing list is created
     assert data == {"solver": {"type": "isam2"},
                     "factors": [{"sigma": {"rotation": 0.01, "translation": 0.001},
-                                 "robust": {"kernel": "huber", "k": 1.5}}],
-                    "seed": 42, "output": {"plots": False}, "name": ""}
+                                 "robust": {"kernel": "huber", "k": 1.5}},
+                                {"type": "cable.pulley_distance", "distance": 4.0}],
+                    "seed": 42, "output": {"plots": False}, "name": "",
+                    "initializers": [{"type": "pose.interpolate"}]}
 
 
 @pytest.mark.parametrize("assignment, message", [
     ("solver.type", "--set 'solver.type': expected key.path=value"),
     ("=3", "--set '': empty key in path (expected e.g. solver.type=isam2)"),
     ("factors.3.sigma=1", "--set factors.3.sigma: index 3 out of range (the list has 1 item(s); indices: 0..0)"),
-    ("factors.x=1", "--set factors.x: 'x' is not a list index (the list has 1 item(s); indices: 0..0)"),
+    ("factors.x=1", "--set factors.x: 'x' is not a list index (the list has 1 item(s); indices: 0..0, or 1 to append)"),
     ("factors.-1.sigma=1", "--set factors.-1.sigma: '-1' is not a list index (the list has 1 item(s); indices: 0..0)"),
-    ("empty.0=1", "--set empty.0: index 0 out of range (the list has 0 item(s); indices: none: the list is empty)"),
+    ("empty.1=1", ("--set empty.1: index 1 out of range (the list has 0 item(s); indices: none: the list is empty, "
+                   "or 0 to append)")),
+    ("factors.2=1", "--set factors.2: index 2 out of range (the list has 1 item(s); indices: 0..0, or 1 to append)"),
     ("solver.type=[a", "--set 'solver.type=[a': value is not valid YAML"),
     ("name.x=1", "--set name.x: parent is not a mapping or list"),
     ("name.x.y=1", "--set name.x.y: 'x' is not inside a mapping"),

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -29,6 +30,42 @@ def run_tutorial(md: Path, workdir: Path) -> None:
     assert proc.returncode == 0, f"{md.name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
 
 
+def _report(out: Path, folder: str) -> dict:
+    return json.loads((out / folder / "report.json").read_text())
+
+
+def _pulley_shape_error(estimate, truth) -> float:
+    """Mean pulley error after the best rigid alignment (Kabsch) of the estimate onto the truth."""
+    a, b = np.asarray(estimate) - np.mean(estimate, axis=0), np.asarray(truth) - np.mean(truth, axis=0)
+    u, _, vt = np.linalg.svd(a.T @ b)
+    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
+    return float(np.linalg.norm(a @ (u @ d @ vt) - b, axis=1).mean())
+
+
+def check_cable_robot_rigid(out: Path) -> None:
+    quick = _report(out, "quickstart")["evaluation"]["parameters"]["cdpr"]
+    assert quick["vo_scale"]["abs_error"][0] < 0.005 and quick["pulley"]["mean_abs_error"] < 0.06
+    verdicts = (out / "only_x" / "validate.txt").read_text()
+    assert verdicts.count("NOT observable from this trajectory") == 4
+    assert verdicts.count("NOT resolved by this motion") == 4
+    batch = _report(out, "arascam_result")
+    assert batch["evaluation"]["trajectories"]["cdpr"]["ate_rmse_m"] < 0.02
+    assert batch["evaluation"]["parameters"]["cdpr"]["pulley"]["mean_abs_error"] < 0.1
+    assert all("observable (rank 6/6" in v for v in batch["diagnostics"]["factors[2]:cable.length"]["verdict"])
+    lag = _report(out, "arascam_fixed_lag")
+    assert lag["solver"]["step_latency_ms"]["steps"] >= 300
+    assert lag["evaluation"]["trajectories"]["cdpr"]["ate_rmse_m"] < 0.02
+    truth = yaml.safe_load((out / "arascam/truth/calibration.yaml").read_text())["robots"]["cdpr"]["pulley"]["values"]
+    pseudo = _report(out, "arascam_pseudo")["parameters"]["cdpr"]
+    plain = batch["parameters"]["cdpr"]
+    assert _pulley_shape_error(pseudo["pulley"]["values"], truth) < 0.5 * _pulley_shape_error(
+        plain["pulley"]["values"], truth)
+    assert np.max(pseudo["offset"]["sigma"]) < 0.5 * np.min(plain["offset"]["sigma"])
+    mocap = _report(out, "arascam_mocap")["evaluation"]["parameters"]["cdpr"]
+    assert mocap["pulley"]["mean_abs_error"] < 0.006 and mocap["offset"]["mean_abs_error"] < 0.006
+    assert np.abs(mocap["pulley"]["z_per_axis"]).max() < 3.5
+
+
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
@@ -43,6 +80,8 @@ def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
             assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.05
         isam = json.loads((tmp_path / "out/sim_isam2/report.json").read_text())
         assert isam["solver"]["step_latency_ms"]["steps"] >= 600
+    if md.stem == "cable_robot_rigid":
+        check_cable_robot_rigid(tmp_path / "out")
     if md.stem == "multirobot":
         for folder in ("multirobot", "two_isam2"):
             report = json.loads((tmp_path / "out" / folder / "report.json").read_text())

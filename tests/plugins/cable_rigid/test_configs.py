@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 import fusionkit
-from fusionkit.pipeline import estimate
+from fusionkit.pipeline import build_problem, estimate, read_sources
+from fusionkit.simulate import write_dataset
 
 CONFIGS = Path(__file__).resolve().parents[3] / "configs"
 
@@ -70,3 +71,21 @@ def test_rigid_cables_under_mocap_show_the_stretch_bias(tmp_path):
     z errors exceed 2.5 sigma (measured: up to 3.1), which is why the config uses eq. 4.2."""
     r = estimate(fusionkit.load_config(_rigid_copy(tmp_path)))
     assert _z_scores(r, "pulley")[:, 2].max() > 2.5
+
+
+def test_lengths_without_tensions_are_counted_not_dropped_silently(tmp_path):
+    """The elastic factor needs a tension at each length sample's state: the rest are named."""
+    write_dataset("cable.cdpr", tmp_path / "sim", ["duration=4"], seed=1)
+    tensions = tmp_path / "sim/data/tensions.csv"
+    rows = tensions.read_text().splitlines()
+    tensions.write_text("\n".join(rows[:61]) + "\n")  # header + the first 2 s
+    config = yaml.safe_load((CONFIGS / "cable_mocap_lengths.yaml").read_text())
+    config["robots"]["cdpr"]["description"] = "robots/cdpr.yaml"
+    config["sources"] = [{"type": "tum", "name": "mocap", "path": "data/mocap.tum"},
+                         {"type": "csv", "name": "lengths", "path": "data/lengths.csv"},
+                         {"type": "csv", "name": "tensions", "path": "data/tensions.csv"}]
+    path = tmp_path / "sim" / "mocap.yaml"
+    path.write_text(yaml.safe_dump(config))
+    problem = build_problem(cfg := fusionkit.load_config(path), read_sources(cfg)[0])
+    assert "factors[1]:cable.elastic_length: 60 of 120 length samples had no tension sample at their state " \
+           "and were not used" in problem.notes
