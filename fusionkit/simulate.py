@@ -3,11 +3,15 @@ robot descriptions and a runnable config (all into one folder, atomically)."""
 
 from __future__ import annotations
 
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from .config.loader import RunConfig, load_config
 from .config.overrides import apply_override
 from .config.schema import validate_against
 from .config.yamlio import Document
@@ -59,3 +63,25 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
             (tmp / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
         written = [p.relative_to(tmp) for p in tmp.rglob("*") if p.is_file()]
     return [out / p for p in written]
+
+
+@contextmanager
+def simulated_config(scenario: str, params: dict, seed: int = 0,
+                     edit: Callable[[dict], None] | None = None) -> Iterator[RunConfig]:
+    """The validated config a simulator writes for its own data, with the data generated
+    in-process (a `simulate` source) and its robot descriptions in a temporary folder that lives
+    as long as the context; `edit(config)` may change the config dict first. For experiments and
+    benchmarks that run many simulated datasets without writing them."""
+    sim = registry().get("simulators", scenario)()
+    full = {**sim.defaults, **params}
+    config = {"name": f"{scenario.replace('.', '_')}_{seed}", **sim.config(full),
+              "sources": [{"type": "simulate", "scenario": scenario, "seed": seed, "params": params}]}
+    if edit:
+        edit(config)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        (folder / "robots").mkdir()
+        for robot, desc in sim.robots(full).items():
+            (folder / "robots" / f"{robot}.yaml").write_text(yaml.safe_dump(desc, sort_keys=False))
+        (folder / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+        yield load_config(folder / "config.yaml")

@@ -61,6 +61,7 @@ CONFIG_SCHEMA = {
             "properties": {
                 "type": {"enum": ["batch", "isam2", "fixed_lag"]},
                 "method": {"enum": ["lm", "gn", "dogleg"]},
+                "factorization": {"enum": ["cholesky", "qr"]},
                 "max_iterations": {"type": "integer", "minimum": 1},
                 "relative_tolerance": POSITIVE,
                 "absolute_tolerance": POSITIVE,

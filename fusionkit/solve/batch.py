@@ -15,8 +15,10 @@ from .levenberg import DampingSettings, levenberg_marquardt
 from .result import SolveResult
 
 
-def _dogleg(graph, initial, rtol, atol, max_iterations, progress):
+def _dogleg(graph, initial, rtol, atol, max_iterations, progress, qr):
     params = gtsam.DoglegParams()
+    if qr:
+        params.setLinearSolverType("MULTIFRONTAL_QR")
     params.setRelativeErrorTol(rtol)
     params.setAbsoluteErrorTol(atol)
     params.setMaxIterations(max_iterations)
@@ -35,7 +37,8 @@ def _dogleg(graph, initial, rtol, atol, max_iterations, progress):
 def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
     """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
-    check_constrained(problem, graph)
+    qr = settings.get("factorization", "cholesky") == "qr"
+    check_constrained(problem, graph, qr)
     method = settings.get("method", "lm")
     rtol = settings.get("relative_tolerance", 1e-6)
     atol = settings.get("absolute_tolerance", 1e-9)
@@ -43,11 +46,11 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     start = time.perf_counter()
     try:
         if method == "dogleg":
-            values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress)
+            values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress, qr)
         else:
             damping = DampingSettings() if method == "lm" else None
             values, history = levenberg_marquardt(graph, problem.initial, rtol, atol, max_iterations, damping,
-                                                  progress)
+                                                  progress, qr)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)
         if msg is None:

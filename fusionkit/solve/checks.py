@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import SolverError
 from ..graph.builder import Problem
+from .factorization import eliminate
 
 _KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
 
@@ -48,8 +49,9 @@ def _first_of_family(problem: Problem, linear: gtsam.GaussianFactorGraph, key: i
     return key
 
 
-def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> None:
-    """Every variable must appear in a factor, and the linearized system must be determinate."""
+def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False) -> None:
+    """Every variable must appear in a factor, and the linearized system must be determinate
+    (to Cholesky, or with `qr` to QR elimination)."""
     used = set(graph.keyVector())
     for key in problem.initial.keys():
         if key not in used:
@@ -57,7 +59,7 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph) -> No
                               "measures it, or remove what declares it")
     linear = graph.linearize(problem.initial)
     try:
-        linear.eliminateMultifrontal()
+        eliminate(linear, qr)
     except RuntimeError as exc:
         key = _indeterminate_key(exc)
         if key is None:

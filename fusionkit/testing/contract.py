@@ -22,10 +22,14 @@ class ContractFailure(AssertionError):
 
 @dataclass
 class FactorExample:
-    """A factor and values at which its (unwhitened) residual is zero."""
+    """A factor and values at which its (unwhitened) residual is zero. `perturbation` is the
+    standard deviation of the tangent-space step to the "away from truth" check: keep it inside
+    the region where the model is defined (a statics factor whose cables go slack 3 degrees away
+    needs a smaller one)."""
 
     factor: gtsam.NonlinearFactor
     values: gtsam.Values
+    perturbation: float = 0.05
 
 
 def _blocks(factor: gtsam.NonlinearFactor, values: gtsam.Values) -> list[np.ndarray]:
@@ -50,7 +54,7 @@ def check_factor_example(example: FactorExample, name: str = "factor", rtol: flo
     zero = values.zeroVectors()
     perturbed = gtsam.VectorValues()
     for key in f.keys():
-        perturbed.insert(key, 0.05 * rng.standard_normal(zero.at(key).shape[0]))
+        perturbed.insert(key, example.perturbation * rng.standard_normal(zero.at(key).shape[0]))
     for label, at in (("at truth", values), ("away from truth", values.retract(perturbed))):
         if not np.all(np.isfinite(f.whitenedError(at))):
             raise ContractFailure(f"{name}: non-finite residual {label}")

@@ -1,0 +1,25 @@
+"""`cable_sag` plugin: suspended cable robots with heavy, sagging cables (spec cable_sag.md) --
+the catenary statics through one reference cable, the kinematic-static calibration factors, the
+fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
+plugin; it adds to the rigid-cable plugin (its `cdpr` model, helpers) without changing it."""
+
+from fusionkit import hookimpl
+
+from .factors import FACTOR_TYPES
+from .initializers import INITIALIZERS
+from .simulator import SIMULATORS
+
+
+@hookimpl
+def register_factor_types():
+    return FACTOR_TYPES
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
+
+
+@hookimpl
+def register_simulators():
+    return SIMULATORS

@@ -1,0 +1,46 @@
+"""What the sag plugin reads from a `cdpr` description: the statics parameters (SagRobot), and
+the names of its per-pose variables."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fusionkit import Spec
+from fusionkit.robots.description import RobotDescription
+from fusionkit_plugins.cable_rigid.simulator import shipped_description
+
+from .statics import N_CABLES, SagRobot
+
+GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N)
+CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
+FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
+
+
+def sag_robot_from(extra: dict, reference: int = 0) -> SagRobot:
+    cables, ee = extra["cables"], extra["end_effector"]
+    return SagRobot(np.asarray(cables["attachments"], float), np.asarray(ee.get("com", [0, 0, 0]), float),
+                    GRAVITY * float(ee["mass"]), float(cables["weight_per_length"]), reference)
+
+
+def sag_robot(desc: RobotDescription, reference: int = 0) -> SagRobot:
+    return sag_robot_from(desc.extra, reference)
+
+
+def check_sag_robot(spec: Spec, scope, n: int) -> None:
+    """Four cables, a cable weight, an end-effector mass, a valid reference cable."""
+    extra = scope.robots[spec["robot"]].extra
+    if n != N_CABLES:
+        raise spec.error("robot", f"the sag statics solve for a 4-cable suspended robot; {spec['robot']!r} has {n}")
+    if "weight_per_length" not in extra["cables"]:
+        raise spec.error("robot", f"robot {spec['robot']!r} has no cables.weight_per_length (N/m); sagging "
+                         "cables need it")
+    if "mass" not in extra.get("end_effector", {}):
+        raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg); the statics need it")
+    if spec.get("reference", 0) >= n:
+        raise spec.error("reference", f"cable index {spec['reference']} out of range: the robot has cables 0..{n - 1}")
+
+
+def shipped_robot(name: str, reference: int = 0) -> tuple[SagRobot, np.ndarray]:
+    """(statics parameters, nominal pulleys (n, 3)) of robots/<name>.yaml."""
+    desc = shipped_description(name)
+    return sag_robot_from(desc, reference), np.asarray(desc["parameters"]["pulley"]["values"], float)

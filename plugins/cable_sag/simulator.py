@@ -1,0 +1,148 @@
+"""`cable.sag_static`: static poses of a suspended 4-cable robot with heavy sagging cables, as the
+calibration of spec cable_sag.md needs them (Table 5.2 setting).
+
+The robot is a shipped description (`cdpr_large` or `cdpr_small`). Its TRUE pulleys are the
+description's perturbed uniformly by +-initial_error/sqrt(3) per axis, and its true encoder
+offsets are drawn the same way around the description's 0: the description is then the rough
+guess the source starts from ("up to 10 m" for the large robot, 1 m for the small one). Each
+static pose: a position drawn uniformly in `workspace` and a yaw ~ N(0, yaw_sigma); the static
+simulator (static_solver.inverse_pose) settles roll and pitch and gives every cable's forces and
+arc length; positions where a cable would go slack are redrawn.
+
+Parameters left null take the robot's values in PER_ROBOT. Streams (one sample per pose, 1 s
+apart): `poses` (the vision system: true pose times Exp(xi), xi ~ N(0, pose_sigma)), `lengths` (l0..l3 = arc length + offset + N(0, length_sigma)), `force`
+(f: tension of the reference cable 0 at the end-effector + N(0, force_sigma)). Truth: the
+equilibrium poses, pulleys and offsets.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from fusionkit import Simulator, SourceOutput
+from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
+from fusionkit.errors import ConfigError
+from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import noisy
+from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_description
+
+from .model import shipped_robot
+from .static_solver import StaticsError, inverse_pose
+
+NONNEG = {"type": "number", "minimum": 0}
+BOX = {"type": "object", "properties": {"min": {"type": "array", "items": {"type": "number"}, "minItems": 3,
+                                                "maxItems": 3},
+                                        "max": {"type": "array", "items": {"type": "number"}, "minItems": 3,
+                                                "maxItems": 3}},
+       "required": ["min", "max"], "additionalProperties": False}
+# per robot: where the end-effector goes (the external finite-element poses span about this), the
+# initial error of the source's protocol, the force sensor's noise (about 1 % of the tension), the
+# vision system's pose noise: centimetre-level on the 250 m robot (the spec), millimetre-level on
+# the lab robot (the source's small-robot errors need it: 1 cm there leaves 0.65 m, at the prior)
+PER_ROBOT = {
+    "cdpr_large": {"workspace": {"min": [-28.0, -28.0, -4.0], "max": [28.0, 28.0, 28.0]},
+                   "initial_error": 10.0, "force_sigma": 5.0,
+                   "pose_sigma": {"rotation": 0.005, "translation": 0.01}},
+    "cdpr_small": {"workspace": {"min": [-1.0, -4.0, -16.5], "max": [1.5, 0.5, -0.8]},
+                   "initial_error": 1.0, "force_sigma": 0.2,
+                   "pose_sigma": {"rotation": 0.001, "translation": 0.001}},
+}
+MAX_DRAWS = 100  # redraws per pose before giving up on a workspace
+# the attachment-height equation (5.13) is the model itself; 1 cm of model tolerance (the size of
+# the attachment-height ambiguity of the external finite-element data) instead of 1 mm gives the
+# same calibration error and halves the iterations
+HEIGHT_SIGMA = 0.01
+
+
+class SagStaticSimulator(Simulator):
+    name = "cable.sag_static"
+    summary = ("static poses of a suspended 4-cable robot with heavy sagging cables (catenary statics): "
+               "vision poses, cable lengths, reference-cable force, truth")
+    schema = {"type": "object",
+              "properties": {"robot": {"enum": sorted(PER_ROBOT)}, "poses": {"type": "integer", "minimum": 4},
+                             "workspace": {"anyOf": [BOX, {"type": "null"}]},
+                             "initial_error": {"anyOf": [NONNEG, {"type": "null"}]},
+                             "force_sigma": {"anyOf": [NONNEG, {"type": "null"}]},
+                             "yaw_sigma_deg": NONNEG, "length_sigma": NONNEG,
+                             "pose_sigma": {"anyOf": [SIGMA, {"type": "null"}]}},
+              "additionalProperties": False}
+    defaults = {"robot": "cdpr_large", "poses": 35, "workspace": None, "initial_error": None,
+                "force_sigma": None, "yaw_sigma_deg": 1.0, "length_sigma": 0.001, "pose_sigma": None}
+
+    def _params(self, params: dict) -> dict:
+        p = {**self.defaults, **params}
+        for key, value in PER_ROBOT[p["robot"]].items():
+            if p[key] is None:
+                p[key] = value
+        return p
+
+    def stream_columns(self, params: dict):
+        return {"poses": POSE_COLUMNS, "lengths": tuple(f"l{i}" for i in range(4)), "force": ("f",)}
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        p = self._params(params)
+        robot, nominal = shipped_robot(p["robot"])
+        half = p["initial_error"] / np.sqrt(3.0)
+        pulleys = nominal + rng.uniform(-half, half, nominal.shape)
+        offsets = rng.uniform(-half, half, robot.n)
+        lo, hi = np.asarray(p["workspace"]["min"], float), np.asarray(p["workspace"]["max"], float)
+        if np.any(lo >= hi):
+            raise ConfigError(f"<simulate {self.name}>: workspace min must be below max on every axis")
+        states = [self._static_pose(rng, lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
+                  for _ in range(p["poses"])]
+        t = np.arange(p["poses"], dtype=float)
+        truth = np.array([np.concatenate([s.t, Rotation.from_matrix(s.R).as_quat()]) for s in states])
+        lengths = np.array([s.state.length for s in states]) + offsets
+        lengths = lengths + rng.normal(0.0, p["length_sigma"], lengths.shape)
+        force = np.array([s.forces[robot.reference] for s in states]) + rng.normal(0.0, p["force_sigma"], len(t))
+        seen = noisy(poses_from_array(truth), p["pose_sigma"], rng)
+        streams = {"poses": pose_stream("poses", t, seen, "simulated:poses"),
+                   "lengths": Stream("lengths", t, tuple(f"l{i}" for i in range(robot.n)), lengths,
+                                     "simulated:lengths"),
+                   "force": Stream("force", t, ("f",), force[:, None], "simulated:force")}
+        calibration = {ROBOT_NAME: {"pulley": {"type": "point3", "values": pulleys.tolist()},
+                                    "offset": {"type": "scalar", "values": offsets.tolist()}}}
+        return SourceOutput(streams, {ROBOT_NAME: pose_stream(ROBOT_NAME, t, truth, "simulated:truth")},
+                            calibration)
+
+    @staticmethod
+    def _static_pose(rng, lo, hi, pulleys, robot, yaw_sigma):
+        for _ in range(MAX_DRAWS):
+            try:
+                return inverse_pose(rng.uniform(lo, hi), pulleys, robot, yaw=rng.normal(0.0, yaw_sigma))
+            except StaticsError:
+                continue  # a slack cable or no equilibrium there: draw again
+        raise ConfigError(f"<simulate cable.sag_static>: no static equilibrium in {MAX_DRAWS} draws from the "
+                          f"workspace {lo.tolist()} .. {hi.tolist()}; shrink it towards the pulleys' centre")
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        """The shipped description, without priors on pulleys and offsets: its values are only the
+        starting guess (off by up to initial_error)."""
+        desc = shipped_description(self._params(params)["robot"])
+        for name in ("pulley", "offset"):
+            desc["parameters"][name].pop("sigma", None)
+        return {ROBOT_NAME: desc}
+
+    def config(self, params: dict) -> dict:
+        """Vision poses, sagging cables, the reference force; poses from the vision system, forces
+        and orientations in equilibrium with the guessed pulleys. Batch Dogleg with QR: the graph is
+        too ill-conditioned for Cholesky (fusionkit/solve/factorization.py), and from pulleys metres
+        off Levenberg-Marquardt crawls along the curved valley the statics make (50-90 iterations
+        measured) where Dogleg's trust region crosses it in 10-26."""
+        p = self._params(params)
+        return {
+            "robots": {ROBOT_NAME: {"description": f"robots/{ROBOT_NAME}.yaml", "states": {"stream": "poses"}}},
+            "factors": [
+                {"type": "pose.absolute", "robot": ROBOT_NAME, "stream": "poses",
+                 "sigma": {k: max(v, 1e-4) for k, v in p["pose_sigma"].items()}},
+                {"type": "cable.sag", "robot": ROBOT_NAME, "stream": "lengths", "sigma": max(p["length_sigma"], 1e-4),
+                 "height_sigma": HEIGHT_SIGMA},
+                {"type": "cable.reference_force", "robot": ROBOT_NAME, "stream": "force",
+                 "sigma": max(p["force_sigma"], 1e-3)}],
+            "initializers": [{"type": "pose.interpolate", "robot": ROBOT_NAME, "stream": "poses"},
+                             {"type": "cable.sag_forces", "robot": ROBOT_NAME}],
+            "solver": {"type": "batch", "method": "dogleg", "factorization": "qr"}}
+
+
+SIMULATORS = [SagStaticSimulator]
