@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import os
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -13,6 +14,7 @@ from .components import FactorType, Initializer, RobotModel, Simulator, Source
 from .errors import PluginError
 
 ENTRY_POINT_GROUP = "fusionkit"
+BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not to load
 
 DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
@@ -56,6 +58,8 @@ def _plugin_manager() -> pluggy.PluginManager:
     pm.add_hookspecs(hookspecs)
     for module_name in DEFAULT_PLUGINS:
         pm.register(importlib.import_module(module_name), name=module_name)
+    for name in filter(None, (n.strip() for n in os.environ.get(BLOCK_ENV, "").split(","))):
+        pm.set_blocked(name)  # e.g. a broken third-party plugin, or to show results do not depend on one
     try:
         pm.load_setuptools_entrypoints(ENTRY_POINT_GROUP)
         pm.check_pending()  # a @hookimpl whose name is no hook (a typo) must not pass silently
