@@ -5,7 +5,8 @@ baselines measured in the same process.
     python benchmarks/run_all.py --quick    # smaller sizes, well under a minute
     python benchmarks/run_all.py --only factors,isam2
 
-Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed).
+Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
+cable_sag (sagging cables: Table 5.2, finite-element data, static simulator and calibration speed).
 See benchmarks/README.md.
 """
 
@@ -25,7 +26,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag")
 
 
 def _git(*args: str) -> str:
@@ -84,6 +85,9 @@ def summary(results: dict) -> str:
     if "cable_rigid" in results:
         import bench_cable_rigid
         lines += bench_cable_rigid.summary(results["cable_rigid"])
+    if "cable_sag" in results:
+        import bench_cable_sag
+        lines += bench_cable_sag.summary(results["cable_sag"])
     return "\n".join(lines)
 
 
@@ -99,11 +103,12 @@ def main(argv=None) -> int:
 
     import bench_batch
     import bench_cable_rigid
+    import bench_cable_sag
     import bench_factors
     import bench_isam2
     import bench_scaled_vo
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid}
+               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

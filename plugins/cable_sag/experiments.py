@@ -64,12 +64,12 @@ def errors(result) -> tuple[float, float]:
     return ev["pulley"]["mean_abs_error"], ev["offset"]["mean_abs_error"]
 
 
-def table_5_2(seeds, settings=SETTINGS, rigid: bool = False) -> dict:
+def table_5_2(seeds, settings=SETTINGS, rigid: bool = False, params: dict | None = None) -> dict:
     """Per (robot, poses): mean over the seeds of the pulley and offset errors (m), and the
-    solve times (s)."""
+    solve times (s); `params` overrides simulator parameters (e.g. pose_sigma)."""
     out = {}
     for robot, poses in settings:
-        runs = [calibrate(robot, poses, seed, rigid=rigid) for seed in seeds]
+        runs = [calibrate(robot, poses, seed, rigid=rigid, params=params) for seed in seeds]
         e = np.array([errors(r) for r in runs])
         out[(robot, poses)] = {"pulley_m": float(e[:, 0].mean()), "offset_m": float(e[:, 1].mean()),
                                "per_seed": e.tolist(), "seconds": [r.solution.seconds for r in runs],
@@ -152,7 +152,8 @@ def recurdyn_model_errors(fe: FePoses) -> dict:
     published geometry): MPE-L, the arc length from the measured horizontal force (the cable's
     vertical force follows from reaching the pulley); MPE-F, the total force from the measured
     arc length (both %). Also the sum of the four cables' vertical forces that the lengths imply,
-    against the end-effector's weight."""
+    against the end-effector's weight, and the median slack (arc length - chord, m): a nearly
+    taut cable's force cannot be read from its length (the small robot: millimetres of slack)."""
     robot, pulleys = shipped_robot(fe.robot)
     span, rise = _span_rise(fe, pulleys, robot.attachments)
     w = robot.cable_weight
@@ -168,7 +169,9 @@ def recurdyn_model_errors(fe: FePoses) -> dict:
         V_ref = _vertical_from_horizontal(fe.reference_h[k], span[k, 0], rise[k, 0], w)
         length = catenary(fe.reference_h[k], V_ref, span[k, 0], w)[0]
         length_err.append(abs(length - fe.lengths[k, 0]) / fe.lengths[k, 0])
-    return {"poses": len(fe.t), "mpe_length_percent": 100 * float(np.mean(length_err)),
+    slack = fe.lengths - np.hypot(span, rise)  # arc length - chord: how far from taut
+    return {"poses": len(fe.t), "median_slack_m": float(np.median(slack)),
+            "mpe_length_percent": 100 * float(np.mean(length_err)),
             "mpe_force_percent": 100 * float(np.mean(force_err)) if force_err else float("nan"),
             "force_samples": len(force_err), "vertical_sum_N": float(np.nanmean(vertical)), "weight_N": robot.weight}
 

@@ -70,7 +70,10 @@ def _newton(residual_and_jacobian, u, retract=_add):
     for it in range(1, MAX_ITERATIONS + 1):
         if np.abs(r).max() < TOLERANCE:
             return u, it - 1
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        try:
+            step = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:  # singular Jacobian: the least-squares step
+            step = np.linalg.lstsq(J, -r, rcond=None)[0]
         norm, lam = np.linalg.norm(r), 1.0
         while lam > 1e-6:
             trial = retract(u, lam * step)
@@ -96,7 +99,7 @@ def inverse_pose(t: np.ndarray, pulleys: np.ndarray, robot: SagRobot, yaw: float
     def fn(u):
         roll, pitch = u[:2]
         R = euler_zyx(yaw, pitch, roll)
-        eq = equilibrium(R, t, u[2:], pulleys, robot, jacobian=True)
+        eq = equilibrium(R, t, u[2:], pulleys, robot, jacobian=True, pulley_jacobian=False)
         # d/droll: R exp(eps e_x); d/dpitch: R exp(eps Rx(roll)^T e_y), Rx^T e_y = (0, cos, -sin)
         J_rot = eq.d_height[:, 0:3]
         J = np.column_stack([J_rot[:, 0], J_rot @ [0.0, np.cos(roll), -np.sin(roll)], eq.d_height[:, 6:8]])
@@ -114,9 +117,8 @@ def forward_pose(lengths: np.ndarray, pulleys: np.ndarray, robot: SagRobot, R0: 
     lengths = np.asarray(lengths, float)
 
     def fn(state):
-        eq = equilibrium(*state, pulleys, robot, jacobian=True)
-        return (np.concatenate([eq.length - lengths, eq.height_error]),
-                np.vstack([eq.d_length[:, :8], eq.d_height[:, :8]]))
+        eq = equilibrium(*state, pulleys, robot, jacobian=True, pulley_jacobian=False)
+        return np.concatenate([eq.length - lengths, eq.height_error]), np.vstack([eq.d_length, eq.d_height])
 
     def retract(state, step):  # theta's rotation is a right perturbation, its translation world-frame
         R, t, f = state

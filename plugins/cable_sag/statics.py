@@ -100,9 +100,11 @@ def _skews(points: np.ndarray) -> np.ndarray:
 
 
 def equilibrium(R: np.ndarray, t: np.ndarray, f_ref: np.ndarray, pulleys: np.ndarray, robot: SagRobot,
-                jacobian: bool = False) -> Equilibrium:
-    """Forces, spans, lengths and height errors of all cables at pose (R, t) (see module doc)."""
-    n, m, ref = robot.n, robot.dim, robot.reference
+                jacobian: bool = False, pulley_jacobian: bool = True) -> Equilibrium:
+    """Forces, spans, lengths and height errors of all cables at pose (R, t) (see module doc).
+    Without `pulley_jacobian` the Jacobians stop at theta[:8] (pose and force: the simulator's)."""
+    n, ref = robot.n, robot.reference
+    m = robot.dim if pulley_jacobian else 8
     r = robot.attachments @ R.T                      # (n, 3) R b_i
     d = r + t - pulleys                              # (n, 3) p_i - a_i
     span = np.hypot(d[:, 0], d[:, 1])
@@ -131,7 +133,7 @@ def equilibrium(R: np.ndarray, t: np.ndarray, f_ref: np.ndarray, pulleys: np.nda
     # derivatives of the geometry with respect to theta, (n, 3, m)
     Dr = np.zeros((n, 3, m))
     Dr[:, :, 0:3] = -np.einsum("ab,ibc->iac", R, robot.attachment_skews)
-    Dd = Dr + robot.geometry_seed
+    Dd = Dr + robot.geometry_seed[:, :, :m]
     Dspan = np.einsum("ik,ikm->im", s[:, :2], Dd[:, :2])
     Ds = np.zeros((n, 3, m))
     Ds[:, :2] = (Dd[:, :2] - s[:, :2, None] * Dspan[:, None, :]) / span[:, None, None]

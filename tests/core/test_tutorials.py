@@ -66,6 +66,14 @@ def check_cable_robot_rigid(out: Path) -> None:
     assert np.abs(mocap["pulley"]["z_per_axis"]).max() < 3.5
 
 
+def check_cable_robot_sag(out: Path) -> None:
+    def pulley_error(folder):
+        return _report(out, folder)["evaluation"]["parameters"]["cdpr"]["pulley"]["mean_abs_error"]
+    assert pulley_error("sag_large") < 0.3
+    assert pulley_error("sag_result") < 1.0
+    assert pulley_error("sag_rigid") > 10 * pulley_error("sag_result")
+
+
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
@@ -82,6 +90,8 @@ def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
         assert isam["solver"]["step_latency_ms"]["steps"] >= 600
     if md.stem == "cable_robot_rigid":
         check_cable_robot_rigid(tmp_path / "out")
+    if md.stem == "cable_robot_sag":
+        check_cable_robot_sag(tmp_path / "out")
     if md.stem == "multirobot":
         for folder in ("multirobot", "two_isam2"):
             report = json.loads((tmp_path / "out" / folder / "report.json").read_text())
