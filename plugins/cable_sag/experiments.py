@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 from scipy.optimize import brentq
+from scipy.spatial.transform import Rotation
 
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
@@ -24,6 +25,7 @@ from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_descript
 
 from .catenary import catenary
 from .model import shipped_robot
+from .simulator import HEIGHT_SIGMA, PER_ROBOT
 from .static_solver import euler_zyx
 
 SCENARIO = "cable.sag_static"
@@ -181,10 +183,6 @@ def recurdyn_calibration(fe: FePoses, seeds, initial_error: float | None = None)
     = the arc lengths (true offsets 0), the reference cable's total force; pulleys and offsets
     start off by +-initial_error/sqrt(3) per axis (the simulator's default for the robot), one
     start per seed. Mean absolute pulley and offset errors against the published geometry (m)."""
-    from scipy.spatial.transform import Rotation
-
-    from .simulator import PER_ROBOT, HEIGHT_SIGMA
-
     robot, pulleys = shipped_robot(fe.robot)
     error = PER_ROBOT[fe.robot]["initial_error"] if initial_error is None else initial_error
     t = np.arange(len(fe.t), dtype=float)

@@ -284,7 +284,8 @@ def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
 def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
     target = tmp_path / "sim"
     message = fails(capsys, ["simulate", "pose.nope", "--out", str(target)], out=target)
-    assert message.startswith("unknown scenario 'pose.nope'; installed simulators: cable.cdpr, pose.scaled_vo, pose.two_robots")
+    assert message.startswith("unknown scenario 'pose.nope'; installed simulators: cable.cdpr, cable.sag_static, "
+                              "pose.scaled_vo, pose.two_robots")
     assert fails(capsys, ["simulate", "pose.scaled_vo", "--out", str(target), "--set", "durations=3"], out=target) == (
         "<simulate pose.scaled_vo>: durations: unknown key 'durations'; accepted keys: duration, marker_offset, "
         "mocap_every, mocap_sigma, rate, scale, vo_sigma")
@@ -379,8 +380,8 @@ def test_bad_override_paths(out, capsys, assignment, message):
     ("solver.type=isam", "solver.type", "got 'isam'; expected one of: batch, isam2, fixed_lag"),
     ("factors.0.sigma.rotation=abc", "factors[0].sigma.rotation", "got 'abc'; expected a number > 0"),
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
-    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: absolute_tolerance, lag, marginals, "
-                                     "max_cost_ratio, max_iterations, method, relative_tolerance, "
+    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: absolute_tolerance, factorization, lag, "
+                                     "marginals, max_cost_ratio, max_iterations, method, relative_tolerance, "
                                      "relinearize_threshold, type, warmup")),
 ])
 def test_bad_override_values_name_the_set(out, capsys, assignment, key, what):
