@@ -9,6 +9,7 @@ import gtsam
 import numpy as np
 
 from fusionkit import FactorType, Spec, gaussian
+from fusionkit.geometry import range_factor
 from fusionkit.testing import FactorExample
 
 from .model import cable_robot
@@ -72,8 +73,7 @@ class CableLength(FactorType):
             mount = attachment_offset(cdpr.attachments[i])
             z = stream.column(columns[i])[assoc.row]
             for k, zk in zip(assoc.state, z):
-                factor = gtsam.RangeFactorWithTransformBias3D(ctx.pose_key(robot, int(k)), pulley, offset,
-                                                              float(zk), noise, mount)
+                factor = range_factor(ctx.pose_key(robot, int(k)), pulley, float(zk), noise, mount, offset)
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
     def diagnose(self, ctx, spec: Spec) -> None:

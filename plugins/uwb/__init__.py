@@ -1,0 +1,26 @@
+"""`uwb` plugin: UWB ranging (spec uwb.md) -- tag-to-anchor ranges with constant or time-varying
+bias per anchor and an optional scale error, tag-to-tag ranges between robots, differential-drive
+odometry and a constant-velocity prior between ranging epochs, multilateration initialization of
+poses and unknown anchors, and a simulator. The range math is the rigid-cable model's
+(fusionkit.geometry): the anchor plays the pulley, the bias the encoder offset."""
+
+from fusionkit import hookimpl
+
+from .factors import FACTOR_TYPES
+from .initializers import INITIALIZERS
+from .simulator import SIMULATORS
+
+
+@hookimpl
+def register_factor_types():
+    return FACTOR_TYPES
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
+
+
+@hookimpl
+def register_simulators():
+    return SIMULATORS

@@ -1,0 +1,332 @@
+"""Factor types of the UWB plugin (spec uwb.md).
+
+`uwb.range`: two-way range from a tag (a sensor of the robot: its mount is the lever arm) to an
+anchor (a point parameter of an anchors description), z = (1 + alpha) ||X b - a|| + beta + w.
+beta is a robot parameter indexed per anchor -- constant (level 1) or `time_varying: true` and
+chained by `parameter.random_walk` (level 2); alpha (`scale:`) is optional. Without alpha this is
+the rigid-cable model, built by the same native GTSAM factor (fusionkit.geometry.range_factor).
+`uwb.tag_range`: a range between tags on two robots (multi-robot).
+`odometry.diff_drive`: wheel speeds of a differential-drive robot integrated between states.
+`motion.constant_velocity`: the body-frame velocity stays the same across consecutive intervals.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import gtsam
+import numpy as np
+
+from fusionkit import FactorType, Spec, gaussian
+from fusionkit.geometry import range_factor
+from fusionkit.graph.variables import POINT2, POINT3, POSE2
+from fusionkit.simulation import POSE_SIGMA_SCHEMA
+from fusionkit.testing import FactorExample
+
+from .residuals import scaled_range_residual, tag_to_tag_residual, unicycle_increment
+
+SIGMA = {"type": "number", "exclusiveMinimum": 0}
+NAME = {"type": "string"}
+
+
+def lever_arm(desc, sensor: str | None) -> np.ndarray:
+    """The tag's position on the body (m): its sensor mount's translation (origin without a tag)."""
+    return np.zeros(3) if sensor is None else np.asarray(desc.sensors[sensor].mount.translation(), float)
+
+
+def planar_mount(b: np.ndarray) -> gtsam.Pose2:
+    return gtsam.Pose2(float(b[0]), float(b[1]), 0.0)
+
+
+def _scaled_error(b: np.ndarray, z: float, has_bias: bool, has_scale: bool, planar: bool, this, v: gtsam.Values, H):
+    keys = this.keys()
+    pose = v.atPose2(keys[0]) if planar else v.atPose3(keys[0])
+    anchor = np.asarray(v.atPoint3(keys[1]), float)
+    bias = v.atDouble(keys[2]) if has_bias else 0.0
+    alpha = v.atDouble(keys[2 + has_bias]) if has_scale else 0.0
+    J = [None] * 4 if H is not None else None
+    e = scaled_range_residual(pose, anchor, bias, alpha, b, z, J)
+    if H is not None:
+        H[0], H[1] = J[0], J[1]
+        if has_bias:
+            H[2] = J[2]
+        if has_scale:
+            H[2 + has_bias] = J[3]
+    return e
+
+
+def scaled_range_factor(pose: int, anchor: int, bias: int | None, scale: int | None, b, z: float, noise,
+                        planar: bool = False):
+    """z = (1 + alpha) ||X b - a|| + beta, 3-D anchor; pose Pose2 (`planar`) or Pose3 (CustomFactor)."""
+    keys = [pose, anchor] + ([bias] if bias is not None else []) + ([scale] if scale is not None else [])
+    return gtsam.CustomFactor(noise, keys, partial(_scaled_error, np.asarray(b, float), float(z),
+                                                   bias is not None, scale is not None, planar))
+
+
+def _tag_error(b_a, b_b, z, planar: bool, this, v: gtsam.Values, H):
+    k = this.keys()
+    at = v.atPose2 if planar else v.atPose3
+    return tag_to_tag_residual(at(k[0]), at(k[1]), b_a, b_b, z, H)
+
+
+def tag_range_factor(a: int, b: int, b_a, b_b, z: float, noise, planar: bool):
+    return gtsam.CustomFactor(noise, [a, b], partial(_tag_error, np.asarray(b_a, float), np.asarray(b_b, float),
+                                                     float(z), planar))
+
+
+def _range_rows(stream, spec: Spec, n: int):
+    """(row, anchor index, range) of every measurement in the stream: long format (`anchor_column`
+    with ids, `range_column`) or wide (`columns`, one per anchor; a non-positive value: no range)."""
+    if "anchor_column" in spec.data:
+        ids = list(spec.get("ids", range(n)))
+        ranges = stream.column(spec.get("range_column", "range"))
+        out = []
+        for row, anchor_id in enumerate(stream.column(spec["anchor_column"])):
+            if anchor_id not in ids:
+                raise spec.error("ids", f"stream {stream.name!r} row {row + 1} names anchor {anchor_id:g}, which "
+                                 f"`ids` does not list ({', '.join(f'{i:g}' for i in ids)})")
+            out.append((row, ids.index(anchor_id), float(ranges[row])))
+        return out
+    columns = spec.get("columns") or [f"r{i}" for i in range(n)]
+    values = np.column_stack([stream.column(c) for c in columns])
+    return [(row, i, float(values[row, i])) for row in range(len(values)) for i in range(n) if values[row, i] > 0]
+
+
+class UwbRange(FactorType):
+    name = "uwb.range"
+    summary = ("UWB two-way range tag -> anchor: z = (1 + alpha) ||R b + t - a|| + beta (bias constant or "
+               "time-varying per anchor; native GTSAM range+bias factor without alpha)")
+    robot_fields = ("robot", "anchors")
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "anchors": NAME, "anchor_parameter": NAME,
+                             "tag": NAME, "bias": NAME, "scale": NAME, "sigma": SIGMA,
+                             "anchor_column": NAME, "range_column": NAME,
+                             "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
+                             "columns": {"type": "array", "items": NAME, "minItems": 1},
+                             "tolerance": {"type": "number", "minimum": 0}},
+              "required": ["robot", "stream", "anchors", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot")
+        anchors = scope.robots[spec["anchors"]]
+        param = spec.get("anchor_parameter", "anchor")
+        if param not in anchors.parameters:
+            raise spec.error("anchors", f"robot {spec['anchors']!r} has no parameter {param!r} (the anchor points)")
+        vartype = anchors.parameters[param].vartype
+        if vartype not in (POINT2, POINT3):
+            raise spec.error("anchors", f"{spec['anchors']}/{param} is {vartype.name}; expected point3 (or point2 for "
+                             "planar robots)")
+        n = anchors.parameters[param].count
+        robot = scope.robots[spec["robot"]]
+        if "tag" in spec.data and spec["tag"] not in robot.sensors:
+            raise spec.error("tag", f"robot {spec['robot']!r} has no sensor {spec['tag']!r}; sensors: "
+                             f"{', '.join(robot.sensors) or '(none)'}")
+        for key in ("bias", "scale"):
+            if key in spec.data:
+                scope.require_parameter(spec, "robot", key, "scalar")
+        if "bias" in spec.data and robot.parameters[spec["bias"]].count != n:
+            raise spec.error("bias", f"{spec['robot']}/{spec['bias']} has {robot.parameters[spec['bias']].count} "
+                             f"value(s); expected one per anchor ({n})")
+        if "anchor_column" in spec.data:
+            scope.require_columns(spec, "stream", (spec["anchor_column"], spec.get("range_column", "range")))
+        else:
+            columns = spec.get("columns") or [f"r{i}" for i in range(n)]
+            if len(columns) != n:
+                raise spec.error("columns", f"{len(columns)} columns named; there are {n} anchors")
+            scope.require_columns(spec, "stream", tuple(columns))
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot, anchors = spec["robot"], spec["anchors"]
+        param = spec.get("anchor_parameter", "anchor")
+        desc = ctx.robot(robot)
+        anchor_type = ctx.robot(anchors).parameters[param].vartype
+        n = ctx.robot(anchors).parameters[param].count
+        states = ctx.state_set(robot, spec)
+        planar = states.family.vartype is POSE2
+        b = lever_arm(desc, spec.get("tag"))
+        stream = ctx.stream(spec["stream"])
+        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        state_of = dict(zip(assoc.row, assoc.state))
+        noise = ctx.noise([spec["sigma"]], spec)
+        native = "scale" not in spec.data and (planar == (anchor_type is POINT2))
+        if planar and anchor_type is POINT2 and "scale" in spec.data:
+            raise spec.error("scale", "the scale error needs 3-D anchors (point3)")
+        mount = planar_mount(b) if planar else gtsam.Pose3(gtsam.Rot3(), b)
+        for row, i, z in _range_rows(stream, spec, n):
+            if row not in state_of:
+                continue  # counted by ctx.associate
+            k = int(state_of[row])
+            pose, anchor = ctx.pose_key(robot, k), ctx.parameter(anchors, param, i)
+            bias = ctx.parameter(robot, spec["bias"], i, k) if "bias" in spec.data else None
+            if native:
+                factor = range_factor(pose, anchor, z, noise, mount, bias)
+            else:
+                scale = ctx.parameter(robot, spec["scale"], None, k) if "scale" in spec.data else None
+                factor = scaled_range_factor(pose, anchor, bias, scale, b, z, noise, planar)
+            ctx.add(factor, spec, ctx.state_time(robot, k))
+
+    @classmethod
+    def example(cls, rng):
+        pose = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3))
+        b, a = rng.normal(size=3) * 0.2, rng.normal(size=3) * 5
+        bias, alpha = float(rng.normal() * 0.1), float(rng.normal() * 0.01)
+        z = (1 + alpha) * float(np.linalg.norm(pose.transformFrom(b) - a)) + bias
+        values = gtsam.Values()
+        values.insert(0, pose)
+        values.insert(1, a)
+        values.insert(2, bias)
+        values.insert(3, alpha)
+        return FactorExample(scaled_range_factor(0, 1, 2, 3, b, z, gaussian([0.05])), values)
+
+
+class UwbTagRange(FactorType):
+    name = "uwb.tag_range"
+    summary = "UWB range between tags on two robots: z = ||X_a b_a - X_b b_b|| (multi-robot)"
+    robot_fields = ("robot", "other")
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "other": NAME, "stream": NAME, "tag": NAME, "other_tag": NAME,
+                             "column": NAME, "sigma": SIGMA, "tolerance": {"type": "number", "minimum": 0}},
+              "required": ["robot", "other", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot")
+        scope.require_states(spec, "other")
+        scope.require_columns(spec, "stream", (spec.get("column", "range"),))
+
+    def build(self, ctx, spec: Spec) -> None:
+        a, b = spec["robot"], spec["other"]
+        planar = ctx.state_set(a, spec).family.vartype is POSE2
+        if planar != (ctx.state_set(b, spec).family.vartype is POSE2):
+            raise spec.error("other", f"robots {a!r} and {b!r} must both be planar (pose2) or both pose3")
+        b_a, b_b = lever_arm(ctx.robot(a), spec.get("tag")), lever_arm(ctx.robot(b), spec.get("other_tag"))
+        stream = ctx.stream(spec["stream"])
+        tol = spec.get("tolerance", 0.005)
+        assoc_a, assoc_b = ctx.associate(stream, a, tol, spec), ctx.associate(stream, b, tol, spec)
+        state_b = dict(zip(assoc_b.row, assoc_b.state))
+        z = stream.column(spec.get("column", "range"))
+        noise = ctx.noise([spec["sigma"]], spec)
+        for row, ka in zip(assoc_a.row, assoc_a.state):
+            if row in state_b:
+                kb = int(state_b[row])
+                factor = tag_range_factor(ctx.pose_key(a, int(ka)), ctx.pose_key(b, kb), b_a, b_b, z[row], noise, planar)
+                ctx.add(factor, spec, max(ctx.state_time(a, int(ka)), ctx.state_time(b, kb)))
+
+    @classmethod
+    def example(cls, rng):
+        pa, pb = (gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3) * 3) for _ in range(2))
+        b_a, b_b = rng.normal(size=3) * 0.2, rng.normal(size=3) * 0.2
+        z = float(np.linalg.norm(pa.transformFrom(b_a) - pb.transformFrom(b_b)))
+        values = gtsam.Values()
+        values.insert(0, pa)
+        values.insert(1, pb)
+        return FactorExample(tag_range_factor(0, 1, b_a, b_b, z, gaussian([0.05]), planar=False), values)
+
+
+class DiffDriveOdometry(FactorType):
+    name = "odometry.diff_drive"
+    summary = ("differential-drive wheel odometry: wheel speeds integrated between consecutive states "
+               "(native BetweenFactorPose2)")
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "wheel_distance": SIGMA,
+                             "right": NAME, "left": NAME, "sigma": POSE_SIGMA_SCHEMA},
+              "required": ["robot", "stream", "wheel_distance", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot", "pose2")
+        scope.require_columns(spec, "stream", (spec.get("right", "v_right"), spec.get("left", "v_left")))
+
+    def build(self, ctx, spec: Spec) -> None:
+        """Each wheel-speed sample holds until the next; sigma (per sqrt(s): m and rad) grows with
+        the square root of the interval."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        stream = ctx.stream(spec["stream"])
+        vr, vl = stream.column(spec.get("right", "v_right")), stream.column(spec.get("left", "v_left"))
+        edges = np.append(stream.t, np.inf)
+        sig = spec["sigma"]
+        for k in range(1, len(states)):
+            t0, t1 = float(states.t[k - 1]), float(states.t[k])
+            first = max(int(np.searchsorted(stream.t, t0, side="right")) - 1, 0)
+            last = int(np.searchsorted(stream.t, t1, side="left"))
+            rows = np.arange(first, max(last, first + 1))
+            dt = np.clip(np.minimum(edges[rows + 1], t1) - np.maximum(stream.t[rows], t0), 0.0, None)
+            delta = unicycle_increment(vr[rows], vl[rows], dt, float(spec["wheel_distance"]))
+            root = np.sqrt(max(t1 - t0, 1e-9))
+            noise = ctx.noise([sig["translation"] * root] * 2 + [sig["rotation"] * root], spec)
+            ctx.add(gtsam.BetweenFactorPose2(ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k), delta, noise),
+                    spec, t1)
+
+    @classmethod
+    def example(cls, rng):
+        a = gtsam.Pose2(*rng.normal(size=3))
+        delta = unicycle_increment(rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.3, np.full(3, 0.1), 0.08)
+        values = gtsam.Values()
+        values.insert(0, a)
+        values.insert(1, a.compose(delta))
+        return FactorExample(gtsam.BetweenFactorPose2(0, 1, delta, gaussian([0.01, 0.01, 0.02])), values)
+
+
+def _constant_velocity_error(dt1: float, dt2: float, planar: bool, this, v: gtsam.Values, H):
+    k = this.keys()
+    cls = gtsam.Pose2 if planar else gtsam.Pose3
+    at = v.atPose2 if planar else v.atPose3
+    x0, x1, x2 = at(k[0]), at(k[1]), at(k[2])
+    d = 3 if planar else 6
+    A0, A1, B1, B2 = (np.zeros((d, d), order="F") for _ in range(4))
+    L1, L2 = np.zeros((d, d), order="F"), np.zeros((d, d), order="F")
+    xi1 = cls.Logmap(x0.between(x1, A0, A1), L1)
+    xi2 = cls.Logmap(x1.between(x2, B1, B2), L2)
+    if H is not None:
+        H[0] = L1 @ A0 / dt1
+        H[1] = L1 @ A1 / dt1 - L2 @ B1 / dt2
+        H[2] = -L2 @ B2 / dt2
+    return xi1 / dt1 - xi2 / dt2
+
+
+class ConstantVelocity(FactorType):
+    name = "motion.constant_velocity"
+    summary = ("constant-velocity prior between ranging epochs: the body-frame twist of consecutive intervals "
+               "agrees, Log(X0^-1 X1)/dt1 = Log(X1^-1 X2)/dt2")
+    robot_fields = ("robot",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "sigma": POSE_SIGMA_SCHEMA},
+              "required": ["robot", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot")
+
+    def build(self, ctx, spec: Spec) -> None:
+        """sigma: the velocity change allowed across one epoch (m/s and rad/s), scaled by
+        sqrt(mean interval) (a white-acceleration model)."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        planar = states.family.vartype is POSE2
+        s = spec["sigma"]
+        for k in range(1, len(states) - 1):
+            dt1, dt2 = float(states.t[k] - states.t[k - 1]), float(states.t[k + 1] - states.t[k])
+            root = np.sqrt(0.5 * (dt1 + dt2))
+            sig = ([s["translation"]] * 2 + [s["rotation"]]) if planar else ([s["rotation"]] * 3 + [s["translation"]] * 3)
+            keys = [ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k), ctx.pose_key(robot, k + 1)]
+            factor = gtsam.CustomFactor(ctx.noise(np.asarray(sig) * root, spec), keys,
+                                        partial(_constant_velocity_error, dt1, dt2, planar))
+            ctx.add(factor, spec, float(states.t[k + 1]))
+
+    @classmethod
+    def example(cls, rng):
+        x0 = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3))
+        twist = rng.normal(size=6) * 0.5
+        dt1, dt2 = 0.1, 0.15
+        x1 = x0.compose(gtsam.Pose3.Expmap(twist * dt1))
+        x2 = x1.compose(gtsam.Pose3.Expmap(twist * dt2))
+        values = gtsam.Values()
+        for i, x in enumerate((x0, x1, x2)):
+            values.insert(i, x)
+        factor = gtsam.CustomFactor(gaussian([0.1] * 6), [0, 1, 2], partial(_constant_velocity_error, dt1, dt2, False))
+        return FactorExample(factor, values)
+
+
+FACTOR_TYPES = [UwbRange, UwbTagRange, DiffDriveOdometry, ConstantVelocity]

@@ -1,0 +1,186 @@
+"""`uwb.sim`: differential-drive robots among UWB anchors in a room (planar: anchors and tags at
+one height), with the errors real UWB ranging has.
+
+Per robot: a smooth closed path (a Lissajous curve inside the room, heading along the motion),
+wheel speeds with noise (`wheel_sigma`, m/s), a tag on a lever arm, and at every epoch (`rate` Hz)
+a two-way range to every anchor: z_i = ||p_tag - a_i|| + beta_i(t) + N(0, range_sigma), where the
+bias starts at N(0, bias_sigma) and drifts as a random walk (`bias_drift`, m/sqrt(s)); with
+`outlier_fraction` > 0, non-line-of-sight bursts (each about `burst_s` long, one anchor) add
++0.3 to +2 m to that share of the ranges. Two robots (`robots: 2`) also range tag to tag. Anchors
+listed in `unknown_anchors` are off by `anchor_error` (m) in the description (sigma 10 m); the
+others are known to 1 mm and fix the frame.
+
+Streams: `ranges_<r>` (t, r0..r{n-1}), `wheels_<r>` (t, v_right, v_left), `bias_<r>` (the true
+biases, t, b0..), `tag_ranges` (two robots); truth: each robot's trajectory and the anchors.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fusionkit import Simulator, SourceOutput
+from fusionkit.data.stream import Stream, pose_stream
+from fusionkit.simulation import sample_times
+
+ROBOT_NAMES = ("a", "b")
+ANCHORS = "anchors"
+NONNEG = {"type": "number", "minimum": 0}
+POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+WHEEL_DISTANCE = 0.3      # m
+LEVER_ARM = [0.10, 0.05]  # m, tag on the robot
+ROOM = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]  # anchors at the corners (m)
+
+
+def lissajous(t: np.ndarray, phase: float, room: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 2) and headings (N,) of a smooth closed path inside the room's bounding box."""
+    lo, hi = room.min(axis=0), room.max(axis=0)
+    centre, half = (lo + hi) / 2, 0.35 * (hi - lo)
+    w = 2 * np.pi / 40.0  # one lap in 40 s
+    pos = centre + half * np.column_stack([np.sin(w * t + phase), np.sin(2 * w * t + 1.7 * phase)])
+    vel = half * np.column_stack([w * np.cos(w * t + phase), 2 * w * np.cos(2 * w * t + 1.7 * phase)])
+    return pos, np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+
+
+def wheel_speeds(t: np.ndarray, pos: np.ndarray, heading: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
+    """(v_right, v_left) (m/s) that drive the path between consecutive samples (held per interval)."""
+    dt = np.diff(t)
+    v = np.linalg.norm(np.diff(pos, axis=0), axis=1) / dt
+    w = np.diff(heading) / dt
+    v, w = np.append(v, v[-1]), np.append(w, w[-1])
+    return v + w * d / 2, v - w * d / 2
+
+
+def nlos_errors(shape: tuple[int, int], fraction: float, burst: int, rng: np.random.Generator) -> np.ndarray:
+    """(epochs, anchors) positive errors: bursts of `burst` epochs on one anchor covering `fraction`."""
+    out = np.zeros(shape)
+    if fraction <= 0:
+        return out
+    n_bursts = int(round(fraction * shape[0] * shape[1] / burst))
+    for _ in range(n_bursts):
+        k, i = rng.integers(0, max(shape[0] - burst, 1)), rng.integers(0, shape[1])
+        out[k:k + burst, i] = rng.uniform(0.3, 2.0)
+    return out
+
+
+class UwbSimulator(Simulator):
+    name = "uwb.sim"
+    summary = ("differential-drive robots among UWB anchors: ranges with drifting bias and NLOS bursts, wheel "
+               "odometry, tag-to-tag ranges (two robots), truth")
+    schema = {"type": "object",
+              "properties": {"robots": {"type": "integer", "minimum": 1, "maximum": 2}, "duration": POSITIVE,
+                             "rate": POSITIVE, "range_sigma": NONNEG, "bias_sigma": NONNEG, "bias_drift": NONNEG,
+                             "outlier_fraction": {"type": "number", "minimum": 0, "maximum": 0.5},
+                             "burst_s": POSITIVE, "wheel_sigma": NONNEG,
+                             "unknown_anchors": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+                             "anchor_error": NONNEG,
+                             "bias_model": {"enum": ["none", "constant", "time_varying"]}},
+              "additionalProperties": False}
+    defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
+                "bias_drift": 0.03, "outlier_fraction": 0.0, "burst_s": 1.0, "wheel_sigma": 0.02,
+                "unknown_anchors": [], "anchor_error": 1.0, "bias_model": "time_varying"}
+
+    def _params(self, params: dict) -> dict:
+        return {**self.defaults, **params}
+
+    def stream_columns(self, params: dict):
+        p = self._params(params)
+        n = len(ROOM)
+        out = {}
+        for r in ROBOT_NAMES[:p["robots"]]:
+            out[f"ranges_{r}"] = tuple(f"r{i}" for i in range(n))
+            out[f"wheels_{r}"] = ("v_right", "v_left")
+            out[f"bias_{r}"] = tuple(f"b{i}" for i in range(n))
+        if p["robots"] == 2:
+            out["tag_ranges"] = ("range",)
+        return out
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        p = self._params(params)
+        anchors = np.asarray(ROOM, float)
+        n = len(anchors)
+        t = sample_times(p["duration"], p["rate"])
+        streams, truth, tags = {}, {}, {}
+        b = np.asarray(LEVER_ARM)
+        for j, r in enumerate(ROBOT_NAMES[:p["robots"]]):
+            pos, heading = lissajous(t, 1.3 * j, anchors)
+            c, s = np.cos(heading), np.sin(heading)
+            tag = pos + np.column_stack([c * b[0] - s * b[1], s * b[0] + c * b[1]])
+            tags[r] = tag
+            dt = 1.0 / p["rate"]
+            bias = rng.normal(0.0, p["bias_sigma"], n) + np.cumsum(
+                rng.normal(0.0, p["bias_drift"] * np.sqrt(dt), (len(t), n)), axis=0)
+            true_range = np.linalg.norm(tag[:, None, :] - anchors[None], axis=2)
+            burst = max(1, int(round(p["burst_s"] * p["rate"])))
+            z = (true_range + bias + rng.normal(0.0, p["range_sigma"], true_range.shape)
+                 + nlos_errors(true_range.shape, p["outlier_fraction"], burst, rng))
+            vr, vl = wheel_speeds(t, pos, heading, WHEEL_DISTANCE)
+            vr, vl = vr + rng.normal(0.0, p["wheel_sigma"], len(t)), vl + rng.normal(0.0, p["wheel_sigma"], len(t))
+            cols = tuple(f"r{i}" for i in range(n))
+            streams[f"ranges_{r}"] = Stream(f"ranges_{r}", t, cols, z, "simulated:ranges")
+            streams[f"wheels_{r}"] = Stream(f"wheels_{r}", t, ("v_right", "v_left"), np.column_stack([vr, vl]),
+                                            "simulated:wheels")
+            streams[f"bias_{r}"] = Stream(f"bias_{r}", t, tuple(f"b{i}" for i in range(n)), bias, "simulated:bias")
+            quat = np.column_stack([np.zeros((len(t), 2)), np.sin(heading / 2), np.cos(heading / 2)])
+            truth[r] = pose_stream(r, t, np.column_stack([pos, np.zeros(len(t)), quat]), "simulated:truth")
+        if p["robots"] == 2:
+            d = np.linalg.norm(tags["a"] - tags["b"], axis=1) + rng.normal(0.0, p["range_sigma"], len(t))
+            streams["tag_ranges"] = Stream("tag_ranges", t, ("range",), d[:, None], "simulated:tag_ranges")
+        calibration = {ANCHORS: {"anchor": {"type": "point2", "values": anchors.tolist()}}}
+        return SourceOutput(streams, truth, calibration)
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        p = self._params(params)
+        anchors = np.asarray(ROOM, float)
+        rng = np.random.default_rng(12345)  # the description's guess for the unknown anchors
+        nominal, sigma = anchors.copy(), [[0.001, 0.001] for _ in anchors]
+        for i in p["unknown_anchors"]:
+            nominal[i] += rng.normal(0.0, p["anchor_error"] / np.sqrt(2), 2)
+            sigma[i] = [10.0, 10.0]
+        out = {ANCHORS: {"name": ANCHORS, "summary": "UWB anchors at the corners of a 10 x 8 m room (m)",
+                         "parameters": {"anchor": {"type": "point2", "values": nominal.round(4).tolist(),
+                                                   "sigma": sigma}}}}
+        for r in ROBOT_NAMES[:p["robots"]]:
+            desc = {"name": r, "summary": "differential-drive robot with a UWB tag",
+                    "sensors": {"tag": {"type": "uwb_tag", "frame": "base",
+                                        "mount": {"translation": LEVER_ARM + [0.0]}}},
+                    "parameters": {}}
+            if p["bias_model"] != "none":
+                desc["parameters"]["uwb_bias"] = {"type": "scalar", "values": [0.0] * len(anchors), "sigma": 1.0,
+                                                  "time_varying": p["bias_model"] == "time_varying"}
+            out[r] = desc
+        return out
+
+    def config(self, params: dict) -> dict:
+        """Per robot: UWB ranges (bias per the bias model), wheel odometry, multilateration start;
+        two robots add their tag-to-tag ranges. Batch Levenberg-Marquardt."""
+        p = self._params(params)
+        robots = {ANCHORS: {"description": f"robots/{ANCHORS}.yaml"}}
+        factors, inits = [], []
+        for r in ROBOT_NAMES[:p["robots"]]:
+            robots[r] = {"description": f"robots/{r}.yaml", "states": {"stream": f"ranges_{r}", "type": "pose2"}}
+            rng_entry = {"type": "uwb.range", "robot": r, "stream": f"ranges_{r}", "anchors": ANCHORS, "tag": "tag",
+                         "sigma": max(p["range_sigma"], 1e-3)}
+            if p["bias_model"] != "none":
+                rng_entry["bias"] = "uwb_bias"
+            factors.append(rng_entry)
+            if p["bias_model"] == "time_varying":
+                factors.append({"type": "parameter.random_walk", "robot": r, "parameter": "uwb_bias",
+                                "sigma": max(p["bias_drift"], 1e-4)})
+            factors.append({"type": "odometry.diff_drive", "robot": r, "stream": f"wheels_{r}",
+                            "wheel_distance": WHEEL_DISTANCE,
+                            "sigma": {"translation": max(p["wheel_sigma"], 1e-3) * 0.5,
+                                      "rotation": max(p["wheel_sigma"], 1e-3) / WHEEL_DISTANCE}})
+            init = {"type": "uwb.multilateration", "robot": r, "anchors": ANCHORS, "stream": f"ranges_{r}",
+                    "tag": "tag"}
+            if p["unknown_anchors"] and r == "a":
+                init["unknown"] = list(p["unknown_anchors"])
+                if p["bias_model"] != "none":
+                    init["bias"] = "uwb_bias"
+            inits.append(init)
+        if p["robots"] == 2:
+            factors.append({"type": "uwb.tag_range", "robot": "a", "other": "b", "stream": "tag_ranges",
+                            "tag": "tag", "other_tag": "tag", "sigma": max(p["range_sigma"], 1e-3)})
+        return {"robots": robots, "factors": factors, "initializers": inits, "solver": {"type": "batch", "method": "lm"}}
+
+
+SIMULATORS = [UwbSimulator]
