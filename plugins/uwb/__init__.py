@@ -8,6 +8,7 @@ from fusionkit import hookimpl
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
+from .labyrinth import SOURCES
 from .simulator import SIMULATORS
 
 
@@ -24,3 +25,8 @@ def register_initializers():
 @hookimpl
 def register_simulators():
     return SIMULATORS
+
+
+@hookimpl
+def register_sources():
+    return SOURCES
