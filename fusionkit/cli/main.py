@@ -77,7 +77,8 @@ def cmd_validate(args) -> int:
     config = load_config(args.config, args.set)
     streams, _ = read_sources(config)
     problem = build_problem(config, streams)
-    check_constrained(problem, problem.graph(), qr=config.solver.get("factorization") == "qr")
+    check_constrained(problem, problem.graph(), qr=config.solver.get("factorization") == "qr",
+                      ordering=config.solver.get("ordering", "colamd"))
     print(f"{args.config}: OK")
     for name, s in streams.items():
         print(f"  stream {name}: {len(s)} samples, t = {s.t[0]:.3f} .. {s.t[-1]:.3f} s, columns {', '.join(s.columns)}")

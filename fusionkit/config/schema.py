@@ -62,6 +62,7 @@ CONFIG_SCHEMA = {
                 "type": {"enum": ["batch", "isam2", "fixed_lag"]},
                 "method": {"enum": ["lm", "gn", "dogleg"]},
                 "factorization": {"enum": ["cholesky", "qr"]},
+                "ordering": {"enum": ["colamd", "metis"]},
                 "max_iterations": {"type": "integer", "minimum": 1},
                 "relative_tolerance": POSITIVE,
                 "absolute_tolerance": POSITIVE,

@@ -15,10 +15,12 @@ from .levenberg import DampingSettings, levenberg_marquardt
 from .result import SolveResult
 
 
-def _dogleg(graph, initial, rtol, atol, max_iterations, progress, qr):
+def _dogleg(graph, initial, rtol, atol, max_iterations, progress, qr, ordering):
     params = gtsam.DoglegParams()
     if qr:
         params.setLinearSolverType("MULTIFRONTAL_QR")
+    if ordering == "metis":
+        params.setOrderingType("METIS")
     params.setRelativeErrorTol(rtol)
     params.setAbsoluteErrorTol(atol)
     params.setMaxIterations(max_iterations)
@@ -38,7 +40,8 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
     qr = settings.get("factorization", "cholesky") == "qr"
-    check_constrained(problem, graph, qr)
+    ordering = settings.get("ordering", "colamd")
+    check_constrained(problem, graph, qr, ordering)
     method = settings.get("method", "lm")
     rtol = settings.get("relative_tolerance", 1e-6)
     atol = settings.get("absolute_tolerance", 1e-9)
@@ -46,11 +49,11 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     start = time.perf_counter()
     try:
         if method == "dogleg":
-            values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress, qr)
+            values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress, qr, ordering)
         else:
             damping = DampingSettings() if method == "lm" else None
             values, history = levenberg_marquardt(graph, problem.initial, rtol, atol, max_iterations, damping,
-                                                  progress, qr)
+                                                  progress, qr, ordering)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)
         if msg is None:

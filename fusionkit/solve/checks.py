@@ -49,7 +49,8 @@ def _first_of_family(problem: Problem, linear: gtsam.GaussianFactorGraph, key: i
     return key
 
 
-def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False) -> None:
+def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False,
+                      ordering: str = "colamd") -> None:
     """Every variable must appear in a factor, and the linearized system must be determinate
     (to Cholesky, or with `qr` to QR elimination)."""
     used = set(graph.keyVector())
@@ -59,7 +60,7 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: b
                               "measures it, or remove what declares it")
     linear = graph.linearize(problem.initial)
     try:
-        eliminate(linear, qr)
+        eliminate(linear, qr, ordering)
     except RuntimeError as exc:
         key = _indeterminate_key(exc)
         if key is None:

@@ -74,9 +74,10 @@ def _converged(before: float, after: float, rtol: float, atol: float) -> bool:
 def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, rtol: float, atol: float,
                         max_iterations: int, damping: DampingSettings | None,
                         progress: Callable[[int, float], None] | None = None,
-                        qr: bool = False) -> tuple[gtsam.Values, list[float]]:
+                        qr: bool = False, ordering: str = "colamd") -> tuple[gtsam.Values, list[float]]:
     """Minimize graph.error; `damping=None` gives plain Gauss-Newton; `qr` solves each linear
-    system by QR instead of Cholesky. Returns (values, cost history)."""
+    system by QR instead of Cholesky, eliminated in `ordering` (colamd, metis). Returns
+    (values, cost history)."""
     values, cost = initial, graph.error(initial)
     history = [cost]
     damper = Damping(values, damping) if damping else None
@@ -88,7 +89,7 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
             if lam > 0 and diagonal is None:
                 diagonal = hessian_diagonal(linear, int(damper.offsets[-1]))
             try:
-                delta = solve_linear(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr)
+                delta = solve_linear(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr, ordering)
             except RuntimeError:  # an undamped system can be singular where the damped one is not
                 if not damper or lam > 0:
                     raise

@@ -297,7 +297,8 @@ class ParameterRandomWalk(FactorType):
     robot_fields = ("robot",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "parameter": {"type": "string"},
-                             "sigma": {"type": "number", "exclusiveMinimum": 0}},
+                             "sigma": {"type": "number", "exclusiveMinimum": 0},
+                             "every": {"type": "integer", "minimum": 1}},
               "required": ["robot", "parameter", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -308,17 +309,23 @@ class ParameterRandomWalk(FactorType):
                              "`time_varying: true` in the robot description")
 
     def build(self, ctx, spec: Spec) -> None:
+        """With `every: m` the parameter has a value at every m-th state only (k = 0, m, 2m, ...):
+        the factors that use it must read it there (e.g. uwb.range's `bias_every`)."""
         robot, name = spec["robot"], spec["parameter"]
         param = ctx.robot(robot).parameters[name]
         states = ctx.state_set(robot, spec)
-        dt = np.diff(states.t)
+        ks = np.arange(0, len(states), spec.get("every", 1))
+        dt = np.diff(states.t[ks])
         zero = param.vartype.zero()
+        noises = {}
         for i in range(param.count):
             prev = ctx.parameter(robot, name, i, 0)
-            for k in range(1, len(states)):
-                key = ctx.parameter(robot, name, i, k)
-                noise = gaussian([spec["sigma"] * np.sqrt(dt[k - 1])] * param.vartype.dim)
-                ctx.add(param.vartype.between(prev, key, zero, noise), spec, float(states.t[k]))
+            for j in range(1, len(ks)):
+                key = ctx.parameter(robot, name, i, int(ks[j]))
+                step = round(float(dt[j - 1]), 9)
+                if step not in noises:  # one noise model per distinct interval, not per factor
+                    noises[step] = gaussian([spec["sigma"] * np.sqrt(step)] * param.vartype.dim)
+                ctx.add(param.vartype.between(prev, key, zero, noises[step]), spec, float(states.t[ks[j]]))
                 prev = key
 
     @classmethod

@@ -101,6 +101,7 @@ class UwbRange(FactorType):
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "anchors": NAME, "anchor_parameter": NAME,
                              "tag": NAME, "bias": NAME, "scale": NAME, "sigma": SIGMA,
+                             "bias_every": {"type": "integer", "minimum": 1},
                              "anchor_column": NAME, "range_column": NAME,
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
@@ -153,12 +154,13 @@ class UwbRange(FactorType):
         if planar and anchor_type is POINT2 and "scale" in spec.data:
             raise spec.error("scale", "the scale error needs 3-D anchors (point3)")
         mount = planar_mount(b) if planar else gtsam.Pose3(gtsam.Rot3(), b)
+        every = spec.get("bias_every", 1)  # a time-varying bias held over `every` states (parameter.random_walk every:)
         for row, i, z in _range_rows(stream, spec, n):
             if row not in state_of:
                 continue  # counted by ctx.associate
             k = int(state_of[row])
             pose, anchor = ctx.pose_key(robot, k), ctx.parameter(anchors, param, i)
-            bias = ctx.parameter(robot, spec["bias"], i, k) if "bias" in spec.data else None
+            bias = ctx.parameter(robot, spec["bias"], i, k - k % every) if "bias" in spec.data else None
             if native:
                 factor = range_factor(pose, anchor, z, noise, mount, bias)
             else:

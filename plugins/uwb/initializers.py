@@ -1,7 +1,8 @@
 """`uwb.multilateration`: first poses and unknown anchors from the ranges alone.
 
-1. Positions: at each state, the ranges of the surrounding `window` (s) to the anchors whose
-   positions are known (their current values: the description's nominal ones) give the tag
+1. Positions: at each state, the ranges of the surrounding `window` (s; default 0: the state's own
+   epoch; round-robin ranging needs a window spanning one round) to the anchors whose positions are
+   known (their current values: the description's nominal ones) give the tag
    position by Gauss-Newton least squares (vectorized over states), minus the lever arm. Planar
    robots get their heading from the direction of travel. This is also the per-epoch
    multilateration baseline of experiments.py.
@@ -73,7 +74,7 @@ class Multilateration(Initializer):
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
                              "unknown": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                             "window": {"type": "number", "exclusiveMinimum": 0}},
+                             "window": {"type": "number", "minimum": 0}},
               "required": ["robot", "anchors", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -100,7 +101,7 @@ class Multilateration(Initializer):
         z = np.array([v for _, _, v in rows])
         known = ~np.isin(ai, unknown)
         height = float(b[2]) if (planar and not planar_anchors) else None
-        pos, usable = multilaterate(states.t, t_r[known], ai[known], z[known], anchors, spec.get("window", 0.5),
+        pos, usable = multilaterate(states.t, t_r[known], ai[known], z[known], anchors, spec.get("window", 0.0),
                                     height)
         if not usable.any():
             raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "

@@ -29,6 +29,7 @@ POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 WHEEL_DISTANCE = 0.3      # m
 LEVER_ARM = [0.10, 0.05]  # m, tag on the robot
 ROOM = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]  # anchors at the corners (m)
+BIAS_RATE = 10.0  # Hz: a drifting bias needs no more variables than this (faster ranging shares them)
 
 
 def lissajous(t: np.ndarray, phase: float, room: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -151,9 +152,11 @@ class UwbSimulator(Simulator):
         return out
 
     def config(self, params: dict) -> dict:
-        """Per robot: UWB ranges (bias per the bias model), wheel odometry, multilateration start;
-        two robots add their tag-to-tag ranges. Batch Levenberg-Marquardt."""
+        """Per robot: UWB ranges (bias per the bias model; time-varying biases are variables at about
+        BIAS_RATE Hz), wheel odometry, multilateration start; two robots add their tag-to-tag
+        ranges. Batch Levenberg-Marquardt."""
         p = self._params(params)
+        every = max(1, int(round(p["rate"] / BIAS_RATE)))  # time-varying biases at about BIAS_RATE Hz
         robots = {ANCHORS: {"description": f"robots/{ANCHORS}.yaml"}}
         factors, inits = [], []
         for r in ROBOT_NAMES[:p["robots"]]:
@@ -162,10 +165,13 @@ class UwbSimulator(Simulator):
                          "sigma": max(p["range_sigma"], 1e-3)}
             if p["bias_model"] != "none":
                 rng_entry["bias"] = "uwb_bias"
+            if p["bias_model"] == "time_varying" and every > 1:
+                rng_entry["bias_every"] = every
             factors.append(rng_entry)
             if p["bias_model"] == "time_varying":
-                factors.append({"type": "parameter.random_walk", "robot": r, "parameter": "uwb_bias",
-                                "sigma": max(p["bias_drift"], 1e-4)})
+                walk = {"type": "parameter.random_walk", "robot": r, "parameter": "uwb_bias",
+                        "sigma": max(p["bias_drift"], 1e-4)}
+                factors.append({**walk, "every": every} if every > 1 else walk)
             factors.append({"type": "odometry.diff_drive", "robot": r, "stream": f"wheels_{r}",
                             "wheel_distance": WHEEL_DISTANCE,
                             "sigma": {"translation": max(p["wheel_sigma"], 1e-3) * 0.5,

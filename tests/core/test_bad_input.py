@@ -381,7 +381,7 @@ def test_bad_override_paths(out, capsys, assignment, message):
     ("factors.0.sigma.rotation=abc", "factors[0].sigma.rotation", "got 'abc'; expected a number > 0"),
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
     ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: absolute_tolerance, factorization, lag, "
-                                     "marginals, max_cost_ratio, max_iterations, method, relative_tolerance, "
+                                     "marginals, max_cost_ratio, max_iterations, method, ordering, relative_tolerance, "
                                      "relinearize_threshold, type, warmup")),
 ])
 def test_bad_override_values_name_the_set(out, capsys, assignment, key, what):

@@ -22,12 +22,13 @@ SOLVERS = {
     "dogleg": ["solver.method=dogleg"],
     "lm_qr": ["solver.method=lm", "solver.factorization=qr"],
     "dogleg_qr": ["solver.method=dogleg", "solver.factorization=qr"],
+    "lm_metis": ["solver.method=lm", "solver.ordering=metis"],
     "isam2": ["solver={type: isam2}"],
     "fixed_lag": ["solver={type: fixed_lag, lag: 3.0}"],
     "isam2_warmup": ["solver={type: isam2, warmup: 2.0}"],
     "fixed_lag_warmup": ["solver={type: fixed_lag, lag: 3.0, warmup: 2.0}"],
 }
-BATCH = ("lm", "gn", "dogleg", "lm_qr", "dogleg_qr")
+BATCH = ("lm", "gn", "dogleg", "lm_qr", "dogleg_qr", "lm_metis")
 INCREMENTAL = ("isam2", "fixed_lag")
 WARMUP = ("isam2_warmup", "fixed_lag_warmup")
 
