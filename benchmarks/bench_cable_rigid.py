@@ -25,10 +25,10 @@ import gtsam
 import numpy as np
 
 from fusionkit.pipeline import build_problem, read_sources
-from fusionkit.solve.incremental import time_steps, value_subset, warm_start
 from fusionkit_plugins.cable_rigid.experiments import (SEQUENCES, loaded_sequence, pseudo_measurement_gain,
                                                        run_sequence, table_4_1)
 
+from _baselines import hand_fixed_lag
 from _timing import ms, ratio, table, timed
 
 FRAME_PERIOD = 1 / 30.0
@@ -108,28 +108,6 @@ def gtsam_lm(problem) -> tuple[float, int, float]:
     opt = gtsam.LevenbergMarquardtOptimizer(problem.graph(), problem.initial, params)
     values, seconds = timed(opt.optimize)
     return seconds, opt.iterations(), problem.graph().error(values)
-
-
-def hand_fixed_lag(problem, settings: dict) -> np.ndarray:
-    """Per-step seconds of a minimal IncrementalFixedLagSmoother loop over the same time steps."""
-    p = gtsam.ISAM2Params()
-    p.setRelinearizeThreshold(settings["relinearize_threshold"])
-    p.relinearizeSkip = 1
-    p.setFactorization("QR")
-    smoother = gtsam.IncrementalFixedLagSmoother(settings["lag"], p)
-    static = [k for k, t in problem.key_time.items() if t == float("-inf")]
-    first, values, t0, steps = warm_start(problem, list(time_steps(problem)), settings["warmup"])
-    stamps = {k: (t0 if problem.key_time[k] == float("-inf") else problem.key_time[k]) for k in values.keys()}
-    smoother.update(first, values, stamps)
-    latency = []
-    for t, factors, new in steps:
-        stamp = {k: t for k in static}
-        stamp.update({k: problem.key_time[k] for k in new})
-        vals = value_subset(problem, new)
-        tic = time.perf_counter()
-        smoother.update(factors, vals, stamp)
-        latency.append(time.perf_counter() - tic)
-    return np.asarray(latency)
 
 
 def speed() -> tuple[str, dict]:

@@ -6,7 +6,8 @@ baselines measured in the same process.
     python benchmarks/run_all.py --only factors,isam2
 
 Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
-cable_sag (sagging cables: Table 5.2, finite-element data, static simulator and calibration speed).
+cable_sag (sagging cables: Table 5.2, finite-element data, static simulator and calibration speed),
+uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed).
 See benchmarks/README.md.
 """
 
@@ -26,7 +27,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb")
 
 
 def _git(*args: str) -> str:
@@ -88,6 +89,9 @@ def summary(results: dict) -> str:
     if "cable_sag" in results:
         import bench_cable_sag
         lines += bench_cable_sag.summary(results["cable_sag"])
+    if "uwb" in results:
+        import bench_uwb
+        lines += bench_uwb.summary(results["uwb"])
     return "\n".join(lines)
 
 
@@ -107,8 +111,9 @@ def main(argv=None) -> int:
     import bench_factors
     import bench_isam2
     import bench_scaled_vo
+    import bench_uwb
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag}
+               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

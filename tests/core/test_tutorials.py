@@ -74,6 +74,16 @@ def check_cable_robot_sag(out: Path) -> None:
     assert pulley_error("sag_rigid") > 10 * pulley_error("sag_result")
 
 
+def check_uwb(out: Path) -> None:
+    def ate(folder, robot="a"):
+        return _report(out, folder)["evaluation"]["trajectories"][robot]["ate_rmse_m"]
+    assert ate("uwb_tv_result") < 0.12 and ate("uwb_tv_result") < ate("uwb_const_result") < ate("uwb_none_result")
+    assert ate("uwb_nlos_cauchy") < 0.5 * ate("uwb_nlos_ls")
+    assert _report(out, "uwb_anchor_result")["evaluation"]["parameters"]["anchors"]["anchor"]["abs_error"][3] < 0.1
+    assert _report(out, "uwb_lag")["solver"]["step_latency_ms"]["steps"] >= 400
+    assert ate("uwb_two") < 0.1 and ate("uwb_two", "b") < 0.1
+
+
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
@@ -92,6 +102,8 @@ def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
         check_cable_robot_rigid(tmp_path / "out")
     if md.stem == "cable_robot_sag":
         check_cable_robot_sag(tmp_path / "out")
+    if md.stem == "uwb":
+        check_uwb(tmp_path / "out")
     if md.stem == "multirobot":
         for folder in ("multirobot", "two_isam2"):
             report = json.loads((tmp_path / "out" / folder / "report.json").read_text())
