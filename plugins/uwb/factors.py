@@ -38,10 +38,11 @@ def planar_mount(b: np.ndarray) -> gtsam.Pose2:
     return gtsam.Pose2(float(b[0]), float(b[1]), 0.0)
 
 
-def _scaled_error(b: np.ndarray, z: float, has_bias: bool, has_scale: bool, planar: bool, this, v: gtsam.Values, H):
+def _scaled_error(b: np.ndarray, z: float, has_bias: bool, has_scale: bool, planar: bool, planar_anchor: bool,
+                  this, v: gtsam.Values, H):
     keys = this.keys()
     pose = v.atPose2(keys[0]) if planar else v.atPose3(keys[0])
-    anchor = np.asarray(v.atPoint3(keys[1]), float)
+    anchor = np.asarray(v.atPoint2(keys[1]) if planar_anchor else v.atPoint3(keys[1]), float)
     bias = v.atDouble(keys[2]) if has_bias else 0.0
     alpha = v.atDouble(keys[2 + has_bias]) if has_scale else 0.0
     J = [None] * 4 if H is not None else None
@@ -56,11 +57,12 @@ def _scaled_error(b: np.ndarray, z: float, has_bias: bool, has_scale: bool, plan
 
 
 def scaled_range_factor(pose: int, anchor: int, bias: int | None, scale: int | None, b, z: float, noise,
-                        planar: bool = False):
-    """z = (1 + alpha) ||X b - a|| + beta, 3-D anchor; pose Pose2 (`planar`) or Pose3 (CustomFactor)."""
+                        planar: bool = False, planar_anchor: bool = False):
+    """z = (1 + alpha) ||X b - a|| + beta; pose Pose2 (`planar`) or Pose3, anchor Point3 or Point2
+    (`planar_anchor`: a planar world) (CustomFactor)."""
     keys = [pose, anchor] + ([bias] if bias is not None else []) + ([scale] if scale is not None else [])
     return gtsam.CustomFactor(noise, keys, partial(_scaled_error, np.asarray(b, float), float(z),
-                                                   bias is not None, scale is not None, planar))
+                                                   bias is not None, scale is not None, planar, planar_anchor))
 
 
 def _tag_error(b_a, b_b, z, planar: bool, this, v: gtsam.Values, H):
@@ -151,8 +153,8 @@ class UwbRange(FactorType):
         state_of = dict(zip(assoc.row, assoc.state))
         noise = ctx.noise([spec["sigma"]], spec)
         native = "scale" not in spec.data and (planar == (anchor_type is POINT2))
-        if planar and anchor_type is POINT2 and "scale" in spec.data:
-            raise spec.error("scale", "the scale error needs 3-D anchors (point3)")
+        if anchor_type is POINT2 and not planar:
+            raise spec.error("anchors", "2-D anchors (point2) need a planar robot (states type pose2)")
         mount = planar_mount(b) if planar else gtsam.Pose3(gtsam.Rot3(), b)
         every = spec.get("bias_every", 1)  # a time-varying bias held over `every` states (parameter.random_walk every:)
         for row, i, z in _range_rows(stream, spec, n):
@@ -165,7 +167,7 @@ class UwbRange(FactorType):
                 factor = range_factor(pose, anchor, z, noise, mount, bias)
             else:
                 scale = ctx.parameter(robot, spec["scale"], None, k) if "scale" in spec.data else None
-                factor = scaled_range_factor(pose, anchor, bias, scale, b, z, noise, planar)
+                factor = scaled_range_factor(pose, anchor, bias, scale, b, z, noise, planar, anchor_type is POINT2)
             ctx.add(factor, spec, ctx.state_time(robot, k))
 
     @classmethod

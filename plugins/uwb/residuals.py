@@ -34,15 +34,17 @@ def tag_position(pose, b: np.ndarray, H: list | None = None) -> np.ndarray:
 def scaled_range_residual(pose, anchor: np.ndarray, bias: float, alpha: float, b: np.ndarray, z: float,
                           H: list | None = None) -> np.ndarray:
     """e = (1 + alpha) ||p_tag - a|| + bias - z (m): UWB two-way range with a distance-proportional
-    scale error alpha and an additive bias. Anchors are 3-D points (a planar robot's tag at the
-    height b_z). Jacobians w.r.t. pose, anchor (1x3), bias (1x1), alpha (1x1)."""
+    scale error alpha and an additive bias. A 3-D anchor (a planar robot's tag at the height b_z)
+    or a 2-D one (planar world: the tag's x, y). Jacobians w.r.t. pose, anchor (1 x dim),
+    bias (1x1), alpha (1x1)."""
     Hp = [None] if H is not None else None
-    d = tag_position(pose, b, Hp) - anchor
+    dim = len(anchor)
+    d = tag_position(pose, b, Hp)[:dim] - anchor
     r = float(np.sqrt(d @ d))
     if H is not None:
-        u = d / r if r > 0 else np.zeros(3)
-        H[0] = ((1 + alpha) * u @ Hp[0]).reshape(1, -1)
-        H[1] = (-(1 + alpha) * u).reshape(1, 3)
+        u = d / r if r > 0 else np.zeros(dim)
+        H[0] = ((1 + alpha) * u @ Hp[0][:dim]).reshape(1, -1)
+        H[1] = (-(1 + alpha) * u).reshape(1, dim)
         H[2] = np.ones((1, 1))
         H[3] = np.array([[r]])
     return np.array([(1 + alpha) * r + bias - z])

@@ -3,7 +3,7 @@ one height), with the errors real UWB ranging has.
 
 Per robot: a smooth closed path (a Lissajous curve inside the room, heading along the motion),
 wheel speeds with noise (`wheel_sigma`, m/s), a tag on a lever arm, and at every epoch (`rate` Hz)
-a two-way range to every anchor: z_i = ||p_tag - a_i|| + beta_i(t) + N(0, range_sigma), where the
+a two-way range to every anchor: z_i = (1 + scale_error) ||p_tag - a_i|| + beta_i(t) + N(0, range_sigma), where the
 bias starts at N(0, bias_sigma) and drifts as a random walk (`bias_drift`, m/sqrt(s)); with
 `outlier_fraction` > 0, non-line-of-sight bursts (each about `burst_s` long, one anchor) add
 +0.3 to +2 m to that share of the ranges. Two robots (`robots: 2`) also range tag to tag. Anchors
@@ -73,12 +73,12 @@ class UwbSimulator(Simulator):
                              "outlier_fraction": {"type": "number", "minimum": 0, "maximum": 0.5},
                              "burst_s": POSITIVE, "wheel_sigma": NONNEG,
                              "unknown_anchors": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                             "anchor_error": NONNEG,
+                             "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
                              "bias_model": {"enum": ["none", "constant", "time_varying"]}},
               "additionalProperties": False}
     defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
                 "bias_drift": 0.03, "outlier_fraction": 0.0, "burst_s": 1.0, "wheel_sigma": 0.02,
-                "unknown_anchors": [], "anchor_error": 1.0, "bias_model": "time_varying"}
+                "unknown_anchors": [], "anchor_error": 1.0, "scale_error": 0.0, "bias_model": "time_varying"}
 
     def _params(self, params: dict) -> dict:
         return {**self.defaults, **params}
@@ -112,7 +112,7 @@ class UwbSimulator(Simulator):
                 rng.normal(0.0, p["bias_drift"] * np.sqrt(dt), (len(t), n)), axis=0)
             true_range = np.linalg.norm(tag[:, None, :] - anchors[None], axis=2)
             burst = max(1, int(round(p["burst_s"] * p["rate"])))
-            z = (true_range + bias + rng.normal(0.0, p["range_sigma"], true_range.shape)
+            z = ((1 + p["scale_error"]) * true_range + bias + rng.normal(0.0, p["range_sigma"], true_range.shape)
                  + nlos_errors(true_range.shape, p["outlier_fraction"], burst, rng))
             vr, vl = wheel_speeds(t, pos, heading, WHEEL_DISTANCE)
             vr, vl = vr + rng.normal(0.0, p["wheel_sigma"], len(t)), vl + rng.normal(0.0, p["wheel_sigma"], len(t))
@@ -148,6 +148,8 @@ class UwbSimulator(Simulator):
             if p["bias_model"] != "none":
                 desc["parameters"]["uwb_bias"] = {"type": "scalar", "values": [0.0] * len(anchors), "sigma": 1.0,
                                                   "time_varying": p["bias_model"] == "time_varying"}
+            if p["scale_error"]:
+                desc["parameters"]["uwb_scale"] = {"type": "scalar", "value": 0.0, "sigma": 0.1}
             out[r] = desc
         return out
 
@@ -167,6 +169,8 @@ class UwbSimulator(Simulator):
                 rng_entry["bias"] = "uwb_bias"
             if p["bias_model"] == "time_varying" and every > 1:
                 rng_entry["bias_every"] = every
+            if p["scale_error"]:
+                rng_entry["scale"] = "uwb_scale"
             factors.append(rng_entry)
             if p["bias_model"] == "time_varying":
                 walk = {"type": "parameter.random_walk", "robot": r, "parameter": "uwb_bias",

@@ -32,6 +32,20 @@ def test_planar_range_with_bias_and_scale_meets_the_contract(seed):
                          "planar scaled range", rng=rng)
 
 
+def test_planar_world_range_with_scale_meets_the_contract():
+    rng = np.random.default_rng(4)
+    pose = gtsam.Pose2(*rng.normal(size=3))
+    b, a = rng.normal(size=3) * 0.2, rng.normal(size=2) * 5
+    z = 1.01 * float(np.linalg.norm(pose.transformFrom(b[:2]) - a)) + 0.1
+    values = gtsam.Values()
+    values.insert(0, pose)
+    values.insert(1, a)
+    values.insert(2, 0.1)
+    values.insert(3, 0.01)
+    factor = scaled_range_factor(0, 1, 2, 3, b, z, gaussian([0.05]), planar=True, planar_anchor=True)
+    check_factor_example(FactorExample(factor, values), "planar-world scaled range", rng=rng)
+
+
 @pytest.mark.parametrize("planar", [False, True])
 def test_native_and_custom_paths_agree(planar):
     """Without a scale error the range is GTSAM's native range+bias factor (shared with the rigid
