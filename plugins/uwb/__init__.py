@@ -9,6 +9,7 @@ from fusionkit import hookimpl
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .labyrinth import SOURCES
+from .drone import UwbDroneSimulator
 from .simulator import SIMULATORS
 
 
@@ -24,7 +25,7 @@ def register_initializers():
 
 @hookimpl
 def register_simulators():
-    return SIMULATORS
+    return SIMULATORS + [UwbDroneSimulator]
 
 
 @hookimpl

@@ -3,9 +3,10 @@
 1. Positions: at each state, the ranges of the surrounding `window` (s; default 0: the state's own
    epoch; round-robin ranging needs a window spanning one round) to the anchors whose positions are
    known (their current values: the description's nominal ones) give the tag
-   position by Gauss-Newton least squares (vectorized over states), minus the lever arm. Planar
-   robots get their heading from the direction of travel. This is also the per-epoch
-   multilateration baseline of experiments.py.
+   position by Gauss-Newton least squares (vectorized over states), minus the lever arm. The
+   heading comes from the direction of travel (`heading: travel`, the planar default) or stays
+   (`keep`, the 3-D default). This is also the per-epoch multilateration baseline of
+   experiments.py.
 2. Unknown anchors (`unknown:` indices): from those positions and their ranges, the closed-form
    range-origin fit shared with the cable plugins (fusionkit.geometry.fit_range_origin): anchor
    position and its constant bias, which initializes the robot's bias parameter when given.
@@ -74,7 +75,8 @@ class Multilateration(Initializer):
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
                              "unknown": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                             "window": {"type": "number", "minimum": 0}},
+                             "window": {"type": "number", "minimum": 0},
+                             "heading": {"enum": ["travel", "keep"]}},
               "required": ["robot", "anchors", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -109,7 +111,7 @@ class Multilateration(Initializer):
         # states without enough ranges take the nearest usable one
         fill = nearest(states.t[usable], states.t, np.inf)
         pos = pos[usable][fill.state[np.argsort(fill.row)]] if not usable.all() else pos
-        self._set_poses(ctx, robot, states, pos, b, planar)
+        self._set_poses(ctx, robot, states, pos, b, planar, spec.get("heading", "travel" if planar else "keep"))
         for i in unknown:
             m = ai == i
             points = self._tag_points(ctx, robot, states, t_r[m], b, planar, planar_anchors)
@@ -124,19 +126,21 @@ class Multilateration(Initializer):
                              f"{c:+.3f} m, fit rms {rms:.3f} m over {int(m.sum())} ranges")
 
     @staticmethod
-    def _set_poses(ctx, robot, states, pos, b, planar):
-        if planar:
-            h = max(1, int(np.searchsorted(states.t - states.t[0], HEADING_BASELINE / 2)))
-            ahead, behind = np.minimum(np.arange(len(pos)) + h, len(pos) - 1), np.maximum(np.arange(len(pos)) - h, 0)
-            step = pos[ahead] - pos[behind]
-            heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
-            for k, (p, th) in enumerate(zip(pos, heading)):
+    def _set_poses(ctx, robot, states, pos, b, planar, heading_mode):
+        """Positions from the tag's, headings along the travel (positions HEADING_BASELINE apart)
+        or, with `keep` (3-D default), the current orientations."""
+        h = max(1, int(np.searchsorted(states.t - states.t[0], HEADING_BASELINE / 2)))
+        ahead, behind = np.minimum(np.arange(len(pos)) + h, len(pos) - 1), np.maximum(np.arange(len(pos)) - h, 0)
+        step = pos[ahead] - pos[behind]
+        heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
+        for k, (p, th) in enumerate(zip(pos, heading)):
+            if planar:
                 c, s = np.cos(th), np.sin(th)
                 origin = p[:2] - np.array([[c, -s], [s, c]]) @ b[:2]
                 ctx.set_initial(ctx.pose_key(robot, k), gtsam.Pose2(origin[0], origin[1], th))
-        else:
-            for k, p in enumerate(pos):
-                ctx.set_initial(ctx.pose_key(robot, k), gtsam.Pose3(gtsam.Rot3(), p - b))
+            else:
+                R = gtsam.Rot3.Yaw(th) if heading_mode == "travel" else ctx.initial.atPose3(ctx.pose_key(robot, k)).rotation()
+                ctx.set_initial(ctx.pose_key(robot, k), gtsam.Pose3(R, p - R.matrix() @ b))
 
     @staticmethod
     def _tag_points(ctx, robot, states, t, b, planar, planar_anchors):

@@ -82,6 +82,7 @@ def check_uwb(out: Path) -> None:
     assert _report(out, "uwb_anchor_result")["evaluation"]["parameters"]["anchors"]["anchor"]["abs_error"][3] < 0.1
     assert _report(out, "uwb_lag")["solver"]["step_latency_ms"]["steps"] >= 400
     assert ate("uwb_two") < 0.1 and ate("uwb_two", "b") < 0.1
+    assert ate("uwb_drone", "drone") < 0.05
 
 
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])

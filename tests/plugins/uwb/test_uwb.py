@@ -108,3 +108,27 @@ def test_constant_velocity_prior_replaces_the_odometry():
                               "sigma": {"translation": 0.3, "rotation": 0.5}} for f in config["factors"]]
     r = run({"bias_model": "time_varying"}, 0, edit=no_wheels)
     assert position_rmse(r) < 0.6 * per_epoch_multilateration(r)
+
+
+def test_imu_between_epochs_in_3d():
+    """uwb.drone: 6 anchors at several heights, ranges at 10 Hz, an IMU at 200 Hz with unknown
+    biases. Measured (seed 0): 2.1 cm, per-anchor biases within 4 mm, per-epoch multilateration
+    several times worse."""
+    from fusionkit.pipeline import estimate
+    from fusionkit.simulate import simulated_config
+    from fusionkit_plugins.uwb.initializers import multilaterate
+
+    with simulated_config("uwb.drone", {"duration": 30.0}, 0, lambda c: c.update(output={"plots": False})) as config:
+        r = estimate(config)
+    ev = r.evaluation
+    assert ev["trajectories"]["drone"]["ate_rmse_m"] < 0.05
+    assert max(ev["parameters"]["drone"]["uwb_bias"]["abs_error"]) < 0.02
+    gyro = np.abs(np.asarray(ev["parameters"]["drone"]["imu_bias"]["z_per_axis"])).max()
+    assert gyro < 4
+    ranges, truth = r.streams["ranges"], r.truth.trajectories["drone"]
+    anchors = np.asarray(r.truth.calibration["anchors"]["anchor"]["values"])
+    n = anchors.shape[0]
+    pos, _ = multilaterate(ranges.t, np.repeat(ranges.t, n), np.tile(np.arange(n), len(ranges.t)),
+                           ranges.values.ravel(), anchors, window=1e-9)
+    baseline = float(np.sqrt(np.mean(np.sum((pos - truth.pose_array()[:, :3]) ** 2, axis=1))))
+    assert ev["trajectories"]["drone"]["ate_rmse_m"] < 0.5 * baseline
