@@ -22,13 +22,13 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-from pathlib import Path
 
 import gtsam
 import numpy as np
 
 from fusionkit.pipeline import build_problem, read_sources
 from fusionkit.simulate import simulated_config
+from fusionkit.testing.external_data import external_data
 from fusionkit.solve import solve
 from fusionkit_plugins.cable_sag.experiments import (SCENARIO, SETTINGS, SOURCE_TABLE_5_2, calibrate, errors,
                                                      recurdyn_calibration, recurdyn_model_errors, recurdyn_poses,
@@ -39,7 +39,7 @@ from fusionkit_plugins.cable_sag.static_solver import forward_pose, inverse_pose
 
 from _timing import median_time, ratio, table, timed
 
-FE_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "cdpr_recurdyn"
+FE_DATA = external_data("cdpr_recurdyn")
 SOURCE_ABLATION = 2.34  # m, rigid graph on the large robot
 SOURCE_MODEL = {"mpe_length_percent": 0.0089, "mpe_force_percent": 0.92}
 

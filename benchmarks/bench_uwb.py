@@ -20,20 +20,20 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import gtsam
 import numpy as np
 
 from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
+from fusionkit.testing.external_data import external_data
 from fusionkit_plugins.uwb.experiments import SCENARIO, bias_models, labyrinth, per_epoch_multilateration, position_rmse
 from fusionkit_plugins.uwb.experiments import run as solve_case
 
 from _baselines import hand_fixed_lag
 from _timing import ms, ratio, table, timed
 
-LABYRINTH = Path(__file__).resolve().parents[2] / "shared" / "data" / "uwb_labyrinth"
+LABYRINTH = external_data("uwb_labyrinth")
 FIXED_LAG = {"type": "fixed_lag", "lag": 0.5, "warmup": 10.0, "factorization": "cholesky"}
 FRAME = 0.01  # s: 100 Hz ranging
 

@@ -4,7 +4,6 @@ and on the external finite-element poses: Table 5.2's errors, the rigid-model ab
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fusionkit.testing.external_data import external_data, missing_reason
 from fusionkit_plugins.cable_sag.experiments import (calibrate, errors, recurdyn_calibration, recurdyn_model_errors,
                                                      recurdyn_poses)
 
-REPO = Path(__file__).resolve().parents[3]
-FE_DATA = Path(os.environ.get("FUSIONKIT_SHARED_DATA", REPO.parent / "shared" / "data")) / "cdpr_recurdyn"
-needs_fe_data = pytest.mark.skipif(not FE_DATA.is_dir(), reason=f"external finite-element data not found at {FE_DATA} "
-                                   "(../shared/data/cdpr_recurdyn; set FUSIONKIT_SHARED_DATA to its parent)")
+FE_DATA = external_data("cdpr_recurdyn")
+needs_fe_data = pytest.mark.skipif(not FE_DATA.is_dir(),
+                                   reason=missing_reason("cdpr_recurdyn", "external finite-element data"))
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,6 @@ number of epochs, two robots in one graph, the per-epoch multilateration baselin
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -13,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fusionkit.testing.external_data import external_data, missing_reason
 from fusionkit_plugins.uwb.experiments import (bias_models, labyrinth, per_epoch_multilateration, position_rmse,
                                                run)
 
-REPO = Path(__file__).resolve().parents[3]
-LABYRINTH = Path(os.environ.get("FUSIONKIT_SHARED_DATA", REPO.parent / "shared" / "data")) / "uwb_labyrinth"
-needs_labyrinth = pytest.mark.skipif(not LABYRINTH.is_dir(), reason=f"Labyrinth recordings not found at {LABYRINTH} "
-                                     "(../shared/data/uwb_labyrinth; set FUSIONKIT_SHARED_DATA to its parent)")
+LABYRINTH = external_data("uwb_labyrinth")
+needs_labyrinth = pytest.mark.skipif(not LABYRINTH.is_dir(),
+                                     reason=missing_reason("uwb_labyrinth", "Labyrinth recordings"))
 
 
 @pytest.fixture(scope="module")
