@@ -73,12 +73,12 @@ def cmd_validate(args) -> int:
     from ..pipeline import build_problem, read_sources
     from ..report.summary import diagnostic_lines
     from ..solve.checks import check_constrained
+    from ..solve.factorization import linear_settings
 
     config = load_config(args.config, args.set)
     streams, _ = read_sources(config)
     problem = build_problem(config, streams)
-    check_constrained(problem, problem.graph(), qr=config.solver.get("factorization") == "qr",
-                      ordering=config.solver.get("ordering", "colamd"))
+    check_constrained(problem, problem.graph(), *linear_settings(config.solver))
     print(f"{args.config}: OK")
     for name, s in streams.items():
         print(f"  stream {name}: {len(s)} samples, t = {s.t[0]:.3f} .. {s.t[-1]:.3f} s, columns {', '.join(s.columns)}")

@@ -10,7 +10,7 @@ import numpy as np
 from ..graph.builder import Problem
 from .batch import solve_batch
 from .checks import check_solution
-from .factorization import qr_marginals
+from .factorization import linear_settings, qr_marginals
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
 
@@ -37,7 +37,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
                    settings.get("max_cost_ratio", float("inf") if lagged else DEFAULT_MAX_COST_RATIO),
                    FIXED_LAG_ALLOWED_RISE if lagged else 1e-6)
     if settings.get("marginals", True) and kind != "fixed_lag":
-        if kind == "batch" and settings.get("factorization") == "qr":
+        if kind == "batch" and linear_settings(settings)[0]:
             result.covariances = qr_marginals(graph, result.values, marginal_keys)
         else:
             result.covariances = marginal_covariances(graph, result, marginal_keys)

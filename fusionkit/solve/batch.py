@@ -11,6 +11,7 @@ import gtsam
 from ..errors import SolverError
 from ..graph.builder import Problem
 from .checks import check_constrained, unconstrained_message
+from .factorization import linear_settings
 from .levenberg import DampingSettings, levenberg_marquardt
 from .result import SolveResult
 
@@ -39,8 +40,7 @@ def _dogleg(graph, initial, rtol, atol, max_iterations, progress, qr, ordering):
 def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
     """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
-    qr = settings.get("factorization", "cholesky") == "qr"
-    ordering = settings.get("ordering", "colamd")
+    qr, ordering = linear_settings(settings)
     check_constrained(problem, graph, qr, ordering)
     method = settings.get("method", "lm")
     rtol = settings.get("relative_tolerance", 1e-6)

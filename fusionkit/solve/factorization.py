@@ -16,6 +16,11 @@ import gtsam
 import numpy as np
 
 
+def linear_settings(settings: dict) -> tuple[bool, str]:
+    """(qr, ordering) of a batch solver's settings: `factorization` and `ordering` with their defaults."""
+    return settings.get("factorization", "cholesky") == "qr", settings.get("ordering", "colamd")
+
+
 def eliminate(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str = "colamd"):
     """The multifrontal Bayes tree of `linear` (COLAMD or METIS ordering), by QR or Cholesky."""
     if not qr and ordering == "colamd":
