@@ -25,10 +25,11 @@ from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_descript
 
 from .catenary import catenary
 from .model import shipped_robot
-from .simulator import HEIGHT_SIGMA, PER_ROBOT
+from .simulator import PER_ROBOT, SagStaticSimulator
 from .static_solver import euler_zyx
 
 SCENARIO = "cable.sag_static"
+FE_POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}  # vision noise assumed on the finite-element poses
 SETTINGS = (("cdpr_large", 9), ("cdpr_large", 18), ("cdpr_large", 35), ("cdpr_small", 8))
 SOURCE_TABLE_5_2 = {("cdpr_large", 9): (0.387, 0.380), ("cdpr_large", 18): (0.226, 0.217),
                     ("cdpr_large", 35): (0.191, 0.173), ("cdpr_small", 8): (0.149, 0.115)}
@@ -207,22 +208,15 @@ def recurdyn_calibration(fe: FePoses, seeds, initial_error: float | None = None)
                                             "values": (pulleys + rng.uniform(-half, half, pulleys.shape)).tolist()}
             desc["parameters"]["offset"] = {"type": "scalar", "values": rng.uniform(-half, half, robot.n).tolist()}
             (folder / "robots" / f"{ROBOT_NAME}.yaml").write_text(yaml.safe_dump(desc))
-            config = {
-                "name": f"fe_{fe.robot}",
-                "robots": {ROBOT_NAME: {"description": f"robots/{ROBOT_NAME}.yaml", "states": {"stream": "poses"}}},
-                "sources": [{"type": "tum", "name": "poses", "path": "data/poses.tum"},
-                            {"type": "csv", "name": "lengths", "path": "data/lengths.csv"},
-                            {"type": "csv", "name": "force", "path": "data/force.csv"}],
-                "factors": [{"type": "pose.absolute", "robot": ROBOT_NAME, "stream": "poses",
-                             "sigma": {"rotation": 0.005, "translation": 0.01}},
-                            {"type": "cable.sag", "robot": ROBOT_NAME, "stream": "lengths", "sigma": 0.001,
-                             "height_sigma": HEIGHT_SIGMA},
-                            {"type": "cable.reference_force", "robot": ROBOT_NAME, "stream": "force",
-                             "sigma": PER_ROBOT[fe.robot]["force_sigma"]}],
-                "initializers": [{"type": "pose.interpolate", "robot": ROBOT_NAME, "stream": "poses"},
-                                 {"type": "cable.sag_forces", "robot": ROBOT_NAME}],
-                "solver": {"type": "batch", "method": "dogleg", "factorization": "qr", "max_cost_ratio": 1e6},
-                "truth": {"calibration": "truth.yaml"}, "output": {"plots": False}}
+            # the simulator's own graph (its defaults for the robot), on these files, with the vision
+            # noise the finite-element poses are given (1 cm, 5 mrad) for both robots
+            graph = SagStaticSimulator().config({"robot": fe.robot, "pose_sigma": FE_POSE_SIGMA})
+            graph["solver"]["max_cost_ratio"] = 1e6
+            config = {"name": f"fe_{fe.robot}", **graph,
+                      "sources": [{"type": "tum", "name": "poses", "path": "data/poses.tum"},
+                                  {"type": "csv", "name": "lengths", "path": "data/lengths.csv"},
+                                  {"type": "csv", "name": "force", "path": "data/force.csv"}],
+                      "truth": {"calibration": "truth.yaml"}, "output": {"plots": False}}
             (folder / "config.yaml").write_text(yaml.safe_dump(config))
             results.append(estimate(load_config(folder / "config.yaml")))
     e = np.array([errors(r) for r in results])
