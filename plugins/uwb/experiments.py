@@ -73,10 +73,11 @@ def bias_models(seeds, params: dict | None = None) -> dict:
     return out
 
 
-def per_epoch_multilateration(result, robot: str = "a", window: float = 0.0) -> float:
-    """Position RMSE (m) of plain multilateration at each epoch from that epoch's ranges alone
-    (no bias, no motion model): the baseline."""
-    ranges = result.streams[f"ranges_{robot}"]
+def per_epoch_multilateration(result, robot: str = "a", window: float = 0.0, stream: str | None = None) -> float:
+    """Position RMSE (m) of the tag by plain multilateration at each epoch from that epoch's ranges
+    alone (no bias, no motion model): the baseline. `stream`: the wide range stream (default
+    ranges_<robot>, the uwb.sim naming); anchors 2-D or 3-D."""
+    ranges = result.streams[stream or f"ranges_{robot}"]
     n = ranges.values.shape[1]
     t = np.repeat(ranges.t, n)
     idx = np.tile(np.arange(n), len(ranges.t))
@@ -85,7 +86,8 @@ def per_epoch_multilateration(result, robot: str = "a", window: float = 0.0) -> 
     truth = result.truth.trajectories[robot]
     m = nearest(truth.t, ranges.t, 1e-6)
     b = lever_arm(result.config.robots[robot].description, "tag")
-    tag_truth = np.array([np.asarray(p.transformFrom(b))[:2] for p in (truth.poses()[k] for k in m.state)])
+    dim = anchors.shape[1]
+    tag_truth = np.array([np.asarray(p.transformFrom(b))[:dim] for p in (truth.poses()[k] for k in m.state)])
     return float(np.sqrt(np.mean(np.sum((pos[m.row] - tag_truth) ** 2, axis=1))))
 
 

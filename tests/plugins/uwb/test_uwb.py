@@ -115,7 +115,6 @@ def test_imu_between_epochs_in_3d():
     several times worse."""
     from fusionkit.pipeline import estimate
     from fusionkit.simulate import simulated_config
-    from fusionkit_plugins.uwb.initializers import multilaterate
 
     with simulated_config("uwb.drone", {"duration": 30.0}, 0, lambda c: c.update(output={"plots": False})) as config:
         r = estimate(config)
@@ -124,10 +123,5 @@ def test_imu_between_epochs_in_3d():
     assert max(ev["parameters"]["drone"]["uwb_bias"]["abs_error"]) < 0.02
     gyro = np.abs(np.asarray(ev["parameters"]["drone"]["imu_bias"]["z_per_axis"])).max()
     assert gyro < 4
-    ranges, truth = r.streams["ranges"], r.truth.trajectories["drone"]
-    anchors = np.asarray(r.truth.calibration["anchors"]["anchor"]["values"])
-    n = anchors.shape[0]
-    pos, _ = multilaterate(ranges.t, np.repeat(ranges.t, n), np.tile(np.arange(n), len(ranges.t)),
-                           ranges.values.ravel(), anchors, window=1e-9)
-    baseline = float(np.sqrt(np.mean(np.sum((pos - truth.pose_array()[:, :3]) ** 2, axis=1))))
+    baseline = per_epoch_multilateration(r, "drone", stream="ranges")
     assert ev["trajectories"]["drone"]["ate_rmse_m"] < 0.5 * baseline
