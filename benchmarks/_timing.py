@@ -90,3 +90,16 @@ def with_big_stack(fn: Callable[[], Any], megabytes: int = 1024) -> Any:
     if "error" in out:
         raise out["error"]
     return out["value"]
+
+
+def section_main(doc: str, run: Callable[[bool], dict], summary: Callable[[dict], list[str]] | None = None) -> None:
+    """The command line of one benchmark section: `python bench_x.py [--quick]` runs it (in a
+    thread with a big stack, as run_all.py does) and prints its tables, then its summary lines."""
+    import argparse
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="smaller sizes and fewer repeats")
+    quick = ap.parse_args().quick
+    res = with_big_stack(lambda: run(quick))
+    print(res["text"])
+    if summary:
+        print("\n".join(summary(res)))

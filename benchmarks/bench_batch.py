@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 
 import gtsam
-import numpy as np
 
 import fusionkit
 from fusionkit.pipeline import estimate
@@ -136,6 +135,5 @@ def run(quick: bool = False) -> dict:
 
 
 if __name__ == "__main__":
-    import sys
-    from _timing import with_big_stack
-    print(with_big_stack(lambda: run("--quick" in sys.argv))["text"])
+    from _timing import section_main
+    section_main(__doc__, run)

@@ -19,9 +19,7 @@ Speed:
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import sys
 
 import gtsam
 import numpy as np
@@ -156,10 +154,5 @@ def summary(results: dict) -> list[str]:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
-    args = ap.parse_args()
-    res = run(args.quick)
-    print(res["text"])
-    print("\n".join(summary(res)))
-    sys.exit(0)
+    from _timing import section_main
+    section_main(__doc__, run, summary)

@@ -94,6 +94,5 @@ def run(quick: bool = False) -> dict:
 
 
 if __name__ == "__main__":
-    import sys
-    from _timing import with_big_stack
-    print(with_big_stack(lambda: run("--quick" in sys.argv))["text"])
+    from _timing import section_main
+    section_main(__doc__, run)

@@ -18,9 +18,6 @@ Speed:
 
 from __future__ import annotations
 
-import argparse
-import sys
-
 import gtsam
 import numpy as np
 
@@ -114,7 +111,7 @@ def speed(quick: bool) -> tuple[str, dict]:
     _, gtsam_s = timed(optimizer.optimize)
     bat = {"estimate_s": seconds, "solve_s": result.solution.seconds, "build_s": result.timings["build_s"],
            "gtsam_lm_s": gtsam_s, "epochs": len(problem.states["a"]), "rmse": position_rmse(result)}
-    rows = [[f"fixed-lag 0.5 s, 100 Hz, per epoch (p50 / p99)", f"{ms(inc['p50'])} / {ms(inc['p99'])} ms",
+    rows = [["fixed-lag 0.5 s, 100 Hz, per epoch (p50 / p99)", f"{ms(inc['p50'])} / {ms(inc['p99'])} ms",
              f"{ms(inc['hand_p50'])} / {ms(inc['hand_p99'])} ms (hand-written loop)",
              ratio(inc["p50"], inc["hand_p50"]), "p50 < 2 ms"],
             [f"batch, {bat['epochs']} epochs: estimate() end to end", f"{bat['estimate_s']:.2f} s",
@@ -145,10 +142,5 @@ def summary(results: dict) -> list[str]:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
-    args = ap.parse_args()
-    res = run(args.quick)
-    print(res["text"])
-    print("\n".join(summary(res)))
-    sys.exit(0)
+    from _timing import section_main
+    section_main(__doc__, run, summary)

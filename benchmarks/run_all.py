@@ -123,7 +123,7 @@ def main(argv=None) -> int:
         tic = time.perf_counter()
         try:
             results[name] = modules[name].run(args.quick)
-        except Exception as exc:  # noqa: BLE001 - one broken section must not hide the others
+        except Exception:  # noqa: BLE001 - one broken section must not hide the others
             failed.append(name)
             print(f"\n[{name}: FAILED after {time.perf_counter() - tic:.1f} s]\n{traceback.format_exc()}", flush=True)
             continue
