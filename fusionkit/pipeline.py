@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -181,6 +182,21 @@ def residuals_by_entry(problem: Problem, final: gtsam.Values) -> dict[str, dict]
     return out
 
 
+def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Problem, marginal_keys: set[int],
+                   progress) -> tuple[Problem, SolveResult]:
+    """solver.refine: solve, then solve again from that estimate with the refined factor entries
+    (graduated: e.g. a model tolerance that lets the first solve travel far is tightened for the
+    second). Iterations and seconds count both solves; costs, checks and covariances are the
+    second's; the returned problem keeps the initializers' values as its initial ones."""
+    settings = {k: v for k, v in config.solver.items() if k != "refine"}
+    first = solve(problem, {**settings, "marginals": False}, set(), progress)
+    refined = build_problem(dataclasses.replace(config, factors=config.refined_factors), streams)
+    second = solve(dataclasses.replace(refined, initial=first.values), settings, marginal_keys, progress)
+    second.iterations += first.iterations
+    second.seconds += first.seconds
+    return refined, second
+
+
 def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = None) -> RunResult:
     """Run everything short of writing files."""
     timings = {}
@@ -191,8 +207,11 @@ def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = 
     problem = build_problem(config, streams)
     timings["build_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    solution = solve(problem, config.solver, _marginal_keys(problem, with_states=bool(truth.trajectories)),
-                     progress)
+    marginal_keys = _marginal_keys(problem, with_states=bool(truth.trajectories))
+    if config.refined_factors:
+        problem, solution = _solve_refined(config, streams, problem, marginal_keys, progress)
+    else:
+        solution = solve(problem, config.solver, marginal_keys, progress)
     timings["solve_and_marginals_s"] = time.perf_counter() - tic
     timings["solve_s"] = solution.seconds
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)

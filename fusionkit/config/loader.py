@@ -40,6 +40,7 @@ class RunConfig:
     output: dict[str, Any]
     stream_columns: dict[str, tuple[str, ...]] = field(default_factory=dict)
     stream_source: dict[str, int] = field(default_factory=dict)
+    refined_factors: list[Spec] = field(default_factory=list)  # solver.refine applied; empty without it
 
     def resolve(self, path: str) -> Path:
         p = Path(path)
@@ -156,6 +157,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
         _check_references(specs, objs, robots, streams)
         for spec, obj in zip(specs, objs):
             obj.check(spec, scope)
+    refined = _refined_factors(doc, factors, factor_objs, reg, scope)
 
     truth = dict(doc.data.get("truth") or {})
     for robot, file in (truth.get("trajectories") or {}).items():
@@ -168,4 +170,35 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
 
     return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
                      robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,
-                     dict(doc.data.get("output") or {}), streams, stream_source)
+                     dict(doc.data.get("output") or {}), streams, stream_source, refined)
+
+
+def _refined_factors(doc: Document, factors: list[Spec], objs: list, reg, scope) -> list[Spec]:
+    """The factor entries of the second solve that `solver.refine` asks for: {label: settings} merged
+    into the entries with that label (e.g. a model tolerance tightened once the first solve has
+    converged), each checked like any entry. Empty when there is no refine."""
+    refine = (doc.data.get("solver") or {}).get("refine")
+    if not refine:
+        return []
+    path = ("solver", "refine")
+    if (doc.data["solver"].get("type") or "batch") != "batch":
+        raise doc.error(path, "only the batch solver refines (a second solve from the first one's estimate)")
+    labels = {spec.get("label"): i for i, spec in enumerate(factors) if spec.get("label")}
+    for label, settings in refine.items():
+        if label not in labels:
+            raise doc.error(path + (label,), f"no factor entry has label {label!r}; labelled entries: "
+                            f"{', '.join(sorted(labels)) or '(none: give one a label)'}")
+        for key in ("type", "label"):
+            if key in settings:
+                raise doc.error(path + (label, key), f"refine changes settings, not the entry's {key}")
+    refined = []
+    for spec, obj in zip(factors, objs):
+        settings = refine.get(spec.get("label"))
+        if settings is None:
+            refined.append(spec)
+            continue
+        merged = Spec({**spec.data, **settings}, doc, spec.path)
+        validate_against(doc, _entry_schema(type(obj), {"robust": ROBUST_SCHEMA}), merged.data, path + (spec["label"],))
+        obj.check(merged, scope)
+        refined.append(merged)
+    return refined

@@ -71,6 +71,7 @@ CONFIG_SCHEMA = {
                 "relinearize_threshold": POSITIVE,
                 "max_cost_ratio": POSITIVE,
                 "marginals": {"type": "boolean"},
+                "refine": {"type": "object", "additionalProperties": {"type": "object"}},
             },
             "additionalProperties": False,
         },

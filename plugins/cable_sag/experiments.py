@@ -30,6 +30,11 @@ from .static_solver import euler_zyx
 
 SCENARIO = "cable.sag_static"
 FE_POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}  # vision noise assumed on the finite-element poses
+# the vision noise of the source's public simulation code (its comments: "1 mm in position error",
+# "0.1 degree in orientation error", drawn per axis with these standard deviations); the spec
+# itself says only "centimetre-level translation, small rotation; values uncertain"
+SOURCE_CODE_POSE_SIGMA = {"translation": float(0.001 / (3 * np.sqrt(3))),
+                          "rotation": float(np.radians(0.1) / (3 * np.sqrt(3)))}
 SETTINGS = (("cdpr_large", 9), ("cdpr_large", 18), ("cdpr_large", 35), ("cdpr_small", 8))
 SOURCE_TABLE_5_2 = {("cdpr_large", 9): (0.387, 0.380), ("cdpr_large", 18): (0.226, 0.217),
                     ("cdpr_large", 35): (0.191, 0.173), ("cdpr_small", 8): (0.149, 0.115)}
@@ -67,14 +72,24 @@ def errors(result) -> tuple[float, float]:
     return ev["pulley"]["mean_abs_error"], ev["offset"]["mean_abs_error"]
 
 
+def predicted_pulley_error(result) -> float:
+    """What the data allow: the mean over pulleys of the RMS distance error their marginal
+    covariance predicts, sqrt(trace), m: the Cramer-Rao bound evaluated at the estimate, what no
+    unbiased estimator beats on average (up to the difference between mean and RMS distance)."""
+    sigma = np.asarray(result.parameters[ROBOT_NAME]["pulley"].sigma)
+    return float(np.mean(np.sqrt((sigma ** 2).sum(axis=1))))
+
+
 def table_5_2(seeds, settings=SETTINGS, rigid: bool = False, params: dict | None = None) -> dict:
-    """Per (robot, poses): mean over the seeds of the pulley and offset errors (m), and the
-    solve times (s); `params` overrides simulator parameters (e.g. pose_sigma)."""
+    """Per (robot, poses): mean over the seeds of the pulley and offset errors (m), of the pulley
+    error the marginals predict (m), and the solve times (s); `params` overrides simulator
+    parameters (e.g. pose_sigma)."""
     out = {}
     for robot, poses in settings:
         runs = [calibrate(robot, poses, seed, rigid=rigid, params=params) for seed in seeds]
         e = np.array([errors(r) for r in runs])
         out[(robot, poses)] = {"pulley_m": float(e[:, 0].mean()), "offset_m": float(e[:, 1].mean()),
+                               "predicted_pulley_m": float(np.mean([predicted_pulley_error(r) for r in runs])),
                                "per_seed": e.tolist(), "seconds": [r.solution.seconds for r in runs],
                                "iterations": [r.solution.iterations for r in runs]}
     return out
@@ -212,6 +227,9 @@ def recurdyn_calibration(fe: FePoses, seeds, initial_error: float | None = None)
             # noise the finite-element poses are given (1 cm, 5 mrad) for both robots
             graph = SagStaticSimulator().config({"robot": fe.robot, "pose_sigma": FE_POSE_SIGMA})
             graph["solver"]["max_cost_ratio"] = 1e6
+            # no refinement: these cables differ from the catenary by about the 1 cm tolerance
+            # (tightened to 0.1 mm, the small robot's pulleys go from 0.08 to 0.18 m off)
+            del graph["solver"]["refine"]
             config = {"name": f"fe_{fe.robot}", **graph,
                       "sources": [{"type": "tum", "name": "poses", "path": "data/poses.tum"},
                                   {"type": "csv", "name": "lengths", "path": "data/lengths.csv"},

@@ -381,12 +381,28 @@ def test_bad_override_paths(out, capsys, assignment, message):
     ("factors.0.sigma.rotation=abc", "factors[0].sigma.rotation", "got 'abc'; expected a number > 0"),
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
     ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: absolute_tolerance, factorization, lag, "
-                                     "marginals, max_cost_ratio, max_iterations, method, ordering, relative_tolerance, "
+                                     "marginals, max_cost_ratio, max_iterations, method, ordering, refine, relative_tolerance, "
                                      "relinearize_threshold, type, warmup")),
+    ("solver.refine={vo: {sigma: 1}}", "solver.refine.vo",
+     "no factor entry has label 'vo'; labelled entries: (none: give one a label)"),
+    ("solver={type: isam2, refine: {vo: {}}}", "solver.refine",
+     "only the batch solver refines (a second solve from the first one's estimate)"),
 ])
 def test_bad_override_values_name_the_set(out, capsys, assignment, key, what):
     assert fails(capsys, run(SCALED_VO, out, *FAST, "--set", assignment), out=out) == \
         f"{SCALED_VO}: {key}: {what} (from --set {assignment})"
+
+
+@pytest.mark.parametrize("refine, key, what", [
+    ("{vo: {sigma: {rotation: -1, translation: 0.01}}}", "solver.refine.vo.sigma.rotation",
+     "got -1; expected a number > 0"),
+    ("{vo: {type: pose.absolute}}", "solver.refine.vo.type", "refine changes settings, not the entry's type"),
+])
+def test_bad_refine_settings_are_located(out, capsys, refine, key, what):
+    """The refined entry is checked like the entry itself, located under solver.refine.<label>."""
+    message = fails(capsys, run(SCALED_VO, out, *FAST, "--set", "factors.0.label=vo", "--set",
+                                f"solver.refine={refine}"), out=out)
+    assert message.startswith(f"{SCALED_VO}: {key}: {what}"), message
 
 
 # ---------------------------------------------------------------- 5. CSV and TUM data

@@ -96,7 +96,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
                                        "solver:\n  type: batch\n  metod: lm\n")
     assert str(err) == ("c.yaml:5: solver.metod: unknown key 'metod'; accepted keys: absolute_tolerance, "
                         "factorization, lag, marginals, max_cost_ratio, max_iterations, method, ordering, "
-                        "relative_tolerance, "
+                        "refine, relative_tolerance, "
                         "relinearize_threshold, type, warmup")
 
 
@@ -109,7 +109,8 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     ("{marginals: 3}", "c.yaml:3: solver.marginals: got 3; expected true or false"),
     ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, factorization, "
                 "ordering, max_iterations, "
-                "relative_tolerance, absolute_tolerance, lag, warmup, relinearize_threshold, max_cost_ratio, marginals")),
+                "relative_tolerance, absolute_tolerance, lag, warmup, relinearize_threshold, max_cost_ratio, marginals, "
+                "refine")),
 ])
 def test_wrong_values_say_what_is_accepted(solver, message):
     err = _schema_error(CONFIG_SCHEMA, f"robots: {{cam: {{description: r.yaml}}}}\nfactors: [{{type: a}}]\n"

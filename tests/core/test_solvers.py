@@ -158,3 +158,19 @@ def test_scale_sigma_is_honest_over_seeds():
     assert np.mean(z < 2) >= 0.8           # binomial(20, 0.954): P(< 16 inside) < 0.3%
     assert np.mean(z < 1) <= 0.95          # not inflated either (ideal 68%)
     assert 0.5 < np.sqrt(np.mean(z ** 2)) < 1.6
+
+
+def test_refine_solves_again_from_the_first_estimate(runs):
+    """solver.refine: the second solve (here: mocap trusted 10x more) starts from the first one's
+    estimate and reaches the minimum of the refined graph, the same as solving that graph at once."""
+    tight = ["factors.1.sigma={rotation: 0.001, translation: 0.001}"]
+    direct = fusionkit.run(SCALED_VO, SHORT + tight)
+    refined = fusionkit.run(SCALED_VO, SHORT + ["factors.1.label=mocap",
+                                               "solver.refine={mocap: {sigma: {rotation: 0.001, translation: 0.001}}}"])
+    assert scale_of(refined)[0] == pytest.approx(scale_of(direct)[0], abs=1e-3 * scale_of(direct)[1])
+    assert scale_of(refined)[1] == pytest.approx(scale_of(direct)[1], rel=1e-4)
+    assert scale_of(refined)[1] < 0.97 * scale_of(runs["lm"])[1]  # the refined graph's sigmas, not the first's
+    assert max_pose_difference(direct, refined) < 1e-4
+    assert refined.solution.iterations > runs["lm"].solution.iterations
+    initial = refined.evaluation["residuals_by_entry"]["mocap"]["initial_rms"]
+    assert initial == pytest.approx(runs["lm"].evaluation["residuals_by_entry"]["factors[1]:pose.absolute"]["initial_rms"])

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from fusionkit.testing.external_data import external_data, missing_reason
-from fusionkit_plugins.cable_sag.experiments import (calibrate, errors, recurdyn_calibration, recurdyn_model_errors,
-                                                     recurdyn_poses)
+from fusionkit_plugins.cable_sag.experiments import (SOURCE_CODE_POSE_SIGMA, calibrate, errors, recurdyn_calibration,
+                                                     recurdyn_model_errors, recurdyn_poses, table_5_2)
 
 FE_DATA = external_data("cdpr_recurdyn")
 needs_fe_data = pytest.mark.skipif(not FE_DATA.is_dir(),
@@ -36,9 +36,28 @@ def test_large_robot_35_poses_matches_table_5_2(large35):
 
 
 def test_small_robot_8_poses():
-    """Source: 0.149 / 0.115 m from starts up to 1 m off; measured (10 seeds, mm-level vision) 0.16 / 0.16 m."""
+    """Source: 0.149 / 0.115 m from starts up to 1 m off; measured (10 seeds, 1 mm vision) 0.125 /
+    0.120 m; without the refined solve (1 cm height tolerance throughout) 0.161 / 0.155 m."""
     e = np.array([errors(calibrate("cdpr_small", 8, seed)) for seed in range(3)])
-    assert e[:, 0].mean() < 0.3 and e[:, 1].mean() < 0.3
+    assert e[:, 0].mean() < 0.2 and e[:, 1].mean() < 0.2
+
+
+@pytest.mark.parametrize("robot, poses, source", [("cdpr_large", 9, (0.387, 0.380)), ("cdpr_small", 8, (0.149, 0.115))])
+def test_table_5_2_at_the_source_codes_vision_noise(robot, poses, source):
+    """At the vision noise of the source's public code (0.19 mm, 0.019 deg per axis) the fewest-pose
+    settings beat Table 5.2: measured over 10 seeds 0.119 / 0.117 m (large, 9) and 0.098 / 0.094 m
+    (small, 8), the table's ten starts."""
+    t = table_5_2(range(10), settings=((robot, poses),), params={"pose_sigma": SOURCE_CODE_POSE_SIGMA})
+    r = t[(robot, poses)]
+    assert r["pulley_m"] < source[0] and r["offset_m"] < source[1]
+
+
+def test_few_poses_at_1_cm_vision_are_bounded_by_the_data():
+    """At 1 cm vision, 9 poses cannot give the source's 0.387 m: the marginals predict 0.9 m of
+    pulley error (measured 0.626 m achieved over 10 seeds); the estimate is no worse than the bound."""
+    r = table_5_2(range(3), settings=(("cdpr_large", 9),))[("cdpr_large", 9)]
+    assert r["predicted_pulley_m"] > 0.387
+    assert r["pulley_m"] < 1.2 * r["predicted_pulley_m"]
 
 
 def test_rigid_graph_is_ten_times_worse(large35):
