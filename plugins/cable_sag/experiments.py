@@ -26,7 +26,7 @@ from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_descript
 from .catenary import catenary
 from .model import shipped_robot
 from .simulator import PER_ROBOT, SagStaticSimulator
-from .static_solver import euler_zyx
+from .static_solver import StaticsError, euler_zyx, inverse_pose
 
 SCENARIO = "cable.sag_static"
 FE_POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}  # vision noise assumed on the finite-element poses
@@ -169,9 +169,11 @@ def recurdyn_model_errors(fe: FePoses) -> dict:
     """The catenary against the finite-element cables at the data's poses (per cable, the robot's
     published geometry): MPE-L, the arc length from the measured horizontal force (the cable's
     vertical force follows from reaching the pulley); MPE-F, the total force from the measured
-    arc length (both %). Also the sum of the four cables' vertical forces that the lengths imply,
-    against the end-effector's weight, and the median slack (arc length - chord, m): a nearly
-    taut cable's force cannot be read from its length (the small robot: millimetres of slack)."""
+    arc length (both %), and its mean signed error (a bias rather than scatter: a parameter
+    differs). Also the sum of the four cables' vertical forces that the lengths imply, against the
+    end-effector's weight; how far the data tilt against the model's equilibrium (tilt_ratio); and
+    the median slack (arc length - chord, m): a nearly taut cable's force cannot be read from its
+    length (the small robot: millimetres of slack)."""
     robot, pulleys = shipped_robot(fe.robot)
     span, rise = _span_rise(fe, pulleys, robot.attachments)
     w = robot.cable_weight
@@ -182,7 +184,7 @@ def recurdyn_model_errors(fe: FePoses) -> dict:
             H, V = _forces_from_length(fe.lengths[k, i], span[k, i], rise[k, i], w)
             Vk.append(V)
             if np.isfinite(fe.totals[k, i]) and np.isfinite(H):
-                force_err.append(abs(np.hypot(H, V) - fe.totals[k, i]) / fe.totals[k, i])
+                force_err.append((np.hypot(H, V) - fe.totals[k, i]) / fe.totals[k, i])
         vertical.append(np.sum(Vk))
         V_ref = _vertical_from_horizontal(fe.reference_h[k], span[k, 0], rise[k, 0], w)
         length = catenary(fe.reference_h[k], V_ref, span[k, 0], w)[0]
@@ -190,8 +192,27 @@ def recurdyn_model_errors(fe: FePoses) -> dict:
     slack = fe.lengths - np.hypot(span, rise)  # arc length - chord: how far from taut
     return {"poses": len(fe.t), "median_slack_m": float(np.median(slack)),
             "mpe_length_percent": 100 * float(np.mean(length_err)),
-            "mpe_force_percent": 100 * float(np.mean(force_err)) if force_err else float("nan"),
-            "force_samples": len(force_err), "vertical_sum_N": float(np.nanmean(vertical)), "weight_N": robot.weight}
+            "mpe_force_percent": 100 * float(np.mean(np.abs(force_err))) if force_err else float("nan"),
+            "force_bias_percent": 100 * float(np.mean(force_err)) if force_err else float("nan"),
+            "force_samples": len(force_err), "vertical_sum_N": float(np.nanmean(vertical)), "weight_N": robot.weight,
+            "tilt_ratio": _tilt_ratio(fe, pulleys, robot)}
+
+
+def _tilt_ratio(fe: FePoses, pulleys: np.ndarray, robot) -> float:
+    """How far the finite-element end-effector tilts against the catenary model's equilibrium at the
+    same position and yaw (static simulator, inverse problem): the least-squares slope of the data's
+    roll and pitch (deg) on the model's. 1 if they agree."""
+    data, model = [], []
+    for R, t in zip(fe.R, fe.t):
+        yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX")
+        try:
+            pose = inverse_pose(t, pulleys, robot, yaw=yaw)
+        except StaticsError:
+            continue
+        data.append([pitch, roll])
+        model.append(Rotation.from_matrix(pose.R).as_euler("ZYX")[1:])
+    data, model = np.ravel(data), np.ravel(model)
+    return float(data @ model / (model @ model))
 
 
 def recurdyn_calibration(fe: FePoses, seeds, initial_error: float | None = None) -> dict:

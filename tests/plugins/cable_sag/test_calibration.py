@@ -82,11 +82,15 @@ def test_simulate_and_run_from_the_command_line(tmp_path):
 @needs_fe_data
 def test_catenary_against_the_finite_element_cables():
     """Source: MPE-L 0.0089 % (large). Measured: 0.0070 %. Forces from lengths: 1.42 % (source
-    0.92 %): a force is 300 times as sensitive as the length it comes from here."""
+    0.92 %), of which 1.40 % is a bias: the finite-element cables differ from the published
+    geometry systematically (the data's end-effector also tilts 0.47 times as far as the catenary
+    equilibrium at the same position and yaw), not by scatter."""
     report = recurdyn_model_errors(recurdyn_poses(FE_DATA, "cdpr_large"))
     assert report["poses"] == 93
     assert report["mpe_length_percent"] < 0.0089
     assert report["mpe_force_percent"] < 2.0
+    assert report["force_bias_percent"] > 0.9 * report["mpe_force_percent"]
+    assert 0.3 < report["tilt_ratio"] < 0.7
 
 
 @needs_fe_data
