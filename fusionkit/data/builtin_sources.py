@@ -8,7 +8,6 @@ import numpy as np
 
 from .. import hookimpl
 from ..components import SourceOutput, Source, Spec
-from ..errors import DataError
 from .files import read_csv_header, read_csv_stream, read_tum
 from .stream import POSE_COLUMNS
 
