@@ -14,6 +14,7 @@ from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, validate_against
 from .yamlio import Document, load_yaml
 
 COMMON_ENTRY_KEYS = {"type", "label"}
+FACTOR_KEYS = {"robust": ROBUST_SCHEMA}  # keys every factor entry accepts besides its type's own
 
 
 @dataclass
@@ -150,14 +151,14 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
                             f"{', '.join(sorted(streams)) or '(none)'}")
 
     factors = specs_of(doc, "factors")
-    factor_objs = _check_entries(doc, factors, "factor_types", reg, {"robust": ROBUST_SCHEMA})
+    factor_objs = _check_entries(doc, factors, "factor_types", reg, FACTOR_KEYS)
     initializers = specs_of(doc, "initializers")
     init_objs = _check_entries(doc, initializers, "initializers", reg, {})
     for specs, objs in ((factors, factor_objs), (initializers, init_objs)):
         _check_references(specs, objs, robots, streams)
         for spec, obj in zip(specs, objs):
             obj.check(spec, scope)
-    refined = _refined_factors(doc, factors, factor_objs, reg, scope)
+    refined = _refined_factors(doc, factors, factor_objs, scope)
 
     truth = dict(doc.data.get("truth") or {})
     for robot, file in (truth.get("trajectories") or {}).items():
@@ -173,7 +174,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
                      dict(doc.data.get("output") or {}), streams, stream_source, refined)
 
 
-def _refined_factors(doc: Document, factors: list[Spec], objs: list, reg, scope) -> list[Spec]:
+def _refined_factors(doc: Document, factors: list[Spec], objs: list, scope) -> list[Spec]:
     """The factor entries of the second solve that `solver.refine` asks for: {label: settings} merged
     into the entries with that label (e.g. a model tolerance tightened once the first solve has
     converged), each checked like any entry. Empty when there is no refine."""
@@ -183,7 +184,7 @@ def _refined_factors(doc: Document, factors: list[Spec], objs: list, reg, scope)
     path = ("solver", "refine")
     if (doc.data["solver"].get("type") or "batch") != "batch":
         raise doc.error(path, "only the batch solver refines (a second solve from the first one's estimate)")
-    labels = {spec.get("label"): i for i, spec in enumerate(factors) if spec.get("label")}
+    labels = {spec.get("label") for spec in factors if spec.get("label")}
     for label, settings in refine.items():
         if label not in labels:
             raise doc.error(path + (label,), f"no factor entry has label {label!r}; labelled entries: "
@@ -198,7 +199,7 @@ def _refined_factors(doc: Document, factors: list[Spec], objs: list, reg, scope)
             refined.append(spec)
             continue
         merged = Spec({**spec.data, **settings}, doc, spec.path)
-        validate_against(doc, _entry_schema(type(obj), {"robust": ROBUST_SCHEMA}), merged.data, path + (spec["label"],))
+        validate_against(doc, _entry_schema(type(obj), FACTOR_KEYS), merged.data, path + (spec["label"],))
         obj.check(merged, scope)
         refined.append(merged)
     return refined
