@@ -92,6 +92,16 @@ def with_big_stack(fn: Callable[[], Any], megabytes: int = 1024) -> Any:
     return out["value"]
 
 
+def run_parts(parts: dict[str, Callable[[], tuple[str, dict]]]) -> dict:
+    """Run a section's parts in order, each returning (table text, raw numbers): the section's
+    {"text": the tables, "raw": {part: numbers}}."""
+    texts, raw = [], {}
+    for name, part in parts.items():
+        text, raw[name] = part()
+        texts.append(text)
+    return {"text": "\n\n".join(texts), "raw": raw}
+
+
 def section_main(doc: str, run: Callable[[bool], dict], summary: Callable[[dict], list[str]] | None = None) -> None:
     """The command line of one benchmark section: `python bench_x.py [--quick]` runs it (in a
     thread with a big stack, as run_all.py does) and prints its tables, then its summary lines."""

@@ -27,7 +27,7 @@ from fusionkit_plugins.cable_rigid.experiments import (SEQUENCES, loaded_sequenc
                                                        run_sequence, table_4_1)
 
 from _baselines import hand_fixed_lag
-from _timing import ms, ratio, table, timed
+from _timing import ms, ratio, run_parts, table, timed
 
 FRAME_PERIOD = 1 / 30.0
 SOURCE = {"dynamic": (0.036, 0.05, 0.029), "smooth": (0.035, 0.03, 0.028)}  # Table 4.1: FK, VO, fused
@@ -151,12 +151,8 @@ def speed() -> tuple[str, dict]:
 
 def run(quick: bool) -> dict:
     seeds = range(5) if quick else range(30)
-    texts, raw = [], {}
-    for name, fn in (("accuracy", lambda: accuracy(seeds)), ("pseudo", lambda: pseudo(range(3 if quick else 10))),
-                     ("speed", speed)):
-        text, raw[name] = fn()
-        texts.append(text)
-    return {"text": "\n\n".join(texts), "raw": raw}
+    return run_parts({"accuracy": lambda: accuracy(seeds), "pseudo": lambda: pseudo(range(3 if quick else 10)),
+                      "speed": speed})
 
 
 def summary(results: dict) -> list[str]:

@@ -28,7 +28,7 @@ from fusionkit_plugins.uwb.experiments import SCENARIO, bias_models, labyrinth, 
 from fusionkit_plugins.uwb.experiments import run as solve_case
 
 from _baselines import hand_fixed_lag
-from _timing import ms, ratio, table, timed
+from _timing import ms, ratio, run_parts, table, timed
 
 LABYRINTH = external_data("uwb_labyrinth")
 FIXED_LAG = {"type": "fixed_lag", "lag": 0.5, "warmup": 10.0, "factorization": "cholesky"}
@@ -125,11 +125,7 @@ def speed(quick: bool) -> tuple[str, dict]:
 
 def run(quick: bool) -> dict:
     seeds = range(2) if quick else range(5)
-    texts, raw = [], {}
-    for name, fn in (("accuracy", lambda: accuracy(seeds)), ("recordings", recordings), ("speed", lambda: speed(quick))):
-        text, raw[name] = fn()
-        texts.append(text)
-    return {"text": "\n\n".join(texts), "raw": raw}
+    return run_parts({"accuracy": lambda: accuracy(seeds), "recordings": recordings, "speed": lambda: speed(quick)})
 
 
 def summary(results: dict) -> list[str]:
