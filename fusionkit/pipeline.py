@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import gtsam
 import numpy as np
@@ -21,6 +21,7 @@ from .eval.trajectory import position_consistency, trajectory_errors
 from .graph.builder import BuildContext, Problem
 from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
+from .progress import Progress
 from .robots.calibration_file import calibration_entries
 from .solve import solve
 from .solve.result import SolveResult
@@ -58,6 +59,11 @@ class RunResult:
     streams: dict[str, Stream] = field(default_factory=dict)  # the data the graph was built from
 
 
+def _stage(progress: Progress | None, text: str) -> None:
+    if progress is not None:
+        progress.stage(text)
+
+
 def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
     """Read every source; gather truth from simulators and from `truth:` files."""
     reg = registry()
@@ -78,15 +84,18 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
     return streams, truth
 
 
-def build_problem(config: RunConfig, streams: dict[str, Stream]) -> Problem:
+def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progress | None = None) -> Problem:
     """Every factor entry builds its factors, then initializers run in config order."""
     reg = registry()
     ctx = BuildContext(config, streams)
     for spec in config.factors:
+        _stage(progress, f"building {spec.label}")
         reg.get("factor_types", spec.type)().build(ctx, spec)
     for spec in config.initializers:
+        _stage(progress, f"initializing: {spec.label}")
         reg.get("initializers", spec.type)().initialize(ctx, spec)
     for spec in config.factors:
+        _stage(progress, f"diagnosing {spec.label}")
         reg.get("factor_types", spec.type)().diagnose(ctx, spec)
     return ctx.problem()
 
@@ -190,21 +199,22 @@ def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Probl
     second's; the returned problem keeps the initializers' values as its initial ones."""
     settings = {k: v for k, v in config.solver.items() if k != "refine"}
     first = solve(problem, {**settings, "marginals": False}, set(), progress)
-    refined = build_problem(dataclasses.replace(config, factors=config.refined_factors), streams)
+    refined = build_problem(dataclasses.replace(config, factors=config.refined_factors), streams, progress)
     second = solve(dataclasses.replace(refined, initial=first.values), settings, marginal_keys, progress)
     second.iterations += first.iterations
     second.seconds += first.seconds
     return refined, second
 
 
-def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = None) -> RunResult:
-    """Run everything short of writing files."""
+def estimate(config: RunConfig, progress: Progress | None = None) -> RunResult:
+    """Run everything short of writing files; `progress` hears of each stage and solver iteration."""
     timings = {}
     tic = time.perf_counter()
+    _stage(progress, "reading the data")
     streams, truth = read_sources(config)
     timings["read_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    problem = build_problem(config, streams)
+    problem = build_problem(config, streams, progress)
     timings["build_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
     marginal_keys = _marginal_keys(problem, with_states=bool(truth.trajectories))
@@ -214,6 +224,7 @@ def estimate(config: RunConfig, progress: Callable[[int, float], None] | None = 
         solution = solve(problem, config.solver, marginal_keys, progress)
     timings["solve_and_marginals_s"] = time.perf_counter() - tic
     timings["solve_s"] = solution.seconds
+    _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
     parameters = _parameters(problem, solution.values, solution.covariances)
     evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)

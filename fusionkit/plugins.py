@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import os
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -34,11 +35,13 @@ KINDS = {
 
 @dataclass
 class Registry:
-    """Every registered component by kind and name, and which plugin provided it."""
+    """Every registered component by kind and name, which plugin provided it, and the installed
+    plugins that failed to load (each a one-line reason naming its distribution and entry point)."""
 
     components: dict[str, dict[str, type]] = field(default_factory=lambda: {k: {} for k in KINDS})
     provider: dict[tuple[str, str], str] = field(default_factory=dict)
     plugins: list[str] = field(default_factory=list)
+    broken: list[str] = field(default_factory=list)
 
     def get(self, kind: str, name: str) -> type | None:
         return self.components[kind].get(name)
@@ -52,47 +55,99 @@ class Registry:
             out[plugin][kind].append(name)
         return out
 
+    def unknown(self, kind: str, name: str) -> str:
+        """The message for a `type:` nothing installed provides, naming what is installed and,
+        when some plugin failed to load, that it might have been the one."""
+        text = (f"unknown {kind[:-1].replace('_', ' ')} {name!r}; installed: "
+                f"{', '.join(self.names(kind)) or '(none)'} (see `fusionkit plugins`)")
+        if self.broken:
+            text += f"; {len(self.broken)} plugin(s) failed to load: " + "; ".join(self.broken)
+        return text
 
-def _plugin_manager() -> pluggy.PluginManager:
+
+def _entry_points() -> list[tuple[str, importlib.metadata.EntryPoint]]:
+    """(distribution name, entry point) of every installed `fusionkit` entry point, once per name."""
+    seen, out = set(), []
+    for dist in importlib.metadata.distributions():
+        for ep in dist.entry_points:
+            if ep.group == ENTRY_POINT_GROUP and ep.name not in seen:
+                seen.add(ep.name)
+                out.append((dist.metadata["Name"] or "?", ep))
+    return out
+
+
+def _plugin_manager(broken: list[str] | None = None) -> pluggy.PluginManager:
+    """Built-ins, then each entry-point plugin; one that fails to import or declares a hook that
+    does not exist is left out and described in `broken` (a typo must not pass silently, and one
+    broken package must not stop configs that do not use it)."""
+    broken = [] if broken is None else broken
     pm = pluggy.PluginManager("fusionkit")
     pm.add_hookspecs(hookspecs)
     for module_name in DEFAULT_PLUGINS:
         pm.register(importlib.import_module(module_name), name=module_name)
-    for name in filter(None, (n.strip() for n in os.environ.get(BLOCK_ENV, "").split(","))):
-        pm.set_blocked(name)  # e.g. a broken third-party plugin, or to show results do not depend on one
-    try:
-        pm.load_setuptools_entrypoints(ENTRY_POINT_GROUP)
-        pm.check_pending()  # a @hookimpl whose name is no hook (a typo) must not pass silently
-    except Exception as exc:  # a broken third-party plugin must not look like our bug
-        raise PluginError(f"cannot load a plugin from entry-point group {ENTRY_POINT_GROUP!r}: "
-                          f"{exc.__class__.__name__}: {exc}") from exc
+    blocked = set(filter(None, (n.strip() for n in os.environ.get(BLOCK_ENV, "").split(","))))
+    for dist, ep in _entry_points():
+        if ep.name in blocked or pm.get_plugin(ep.name) is not None:
+            continue  # blocked: e.g. to show results do not depend on a plugin
+        where = f"plugin {ep.name!r} (entry point {ep.name} = {ep.value} of distribution {dist})"
+        try:
+            plugin = ep.load()
+        except Exception as exc:
+            broken.append(f"{where}: {exc.__class__.__name__}: {exc}")
+            continue
+        pm.register(plugin, name=ep.name)
+        try:
+            pm.check_pending()
+        except pluggy.PluginValidationError as exc:
+            pm.unregister(name=ep.name)
+            broken.append(f"{where}: {exc}")
     return pm
 
 
-def build_registry(pm: pluggy.PluginManager) -> Registry:
-    """Collect each plugin's registrations; duplicate names and wrong base classes are errors."""
-    reg = Registry()
+def _provided(impl, pname: str, hook_name: str, base: type) -> list[type]:
+    """What one plugin's registration hook returns, checked; PluginError when it fails or returns
+    something that is not a named subclass of `base`."""
+    try:
+        provided = list(impl() or [])
+    except Exception as exc:
+        raise PluginError(f"plugin {pname}: {hook_name}() failed: {exc.__class__.__name__}: {exc}") from exc
+    for cls in provided:
+        if not (isinstance(cls, type) and issubclass(cls, base)) or not cls.name:
+            raise PluginError(f"plugin {pname}: {hook_name} returned {cls!r}; expected a "
+                              f"{base.__name__} subclass with a name")
+    return provided
+
+
+def build_registry(pm: pluggy.PluginManager, broken: list[str] | None = None) -> Registry:
+    """Collect each plugin's registrations. A built-in that fails is our bug (PluginError); an
+    entry-point plugin that fails, or provides a name another plugin provides, is left out whole
+    and described in `registry.broken`."""
+    reg = Registry(broken=list(broken or []))
     # only functions marked @hookimpl count (not any attribute that happens to have a hook's name)
     impls = {kind: {i.plugin_name: i.function for i in getattr(pm.hook, hook_name).get_hookimpls()}
              for kind, (hook_name, _) in KINDS.items()}
     for plugin in pm.get_plugins():
         pname = pm.get_name(plugin)
+        try:
+            provided = {kind: _provided(impls[kind][pname], pname, hook_name, base)
+                        for kind, (hook_name, base) in KINDS.items() if pname in impls[kind]}
+            for kind, classes in provided.items():
+                names = [cls.name for cls in classes]
+                for i, cls in enumerate(classes):
+                    if cls.name in names[:i]:
+                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {cls.name!r} is "
+                                          "registered twice")
+                    if cls.name in reg.components[kind]:
+                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {cls.name!r} is "
+                                          f"already provided by {reg.provider[(kind, cls.name)]}")
+        except PluginError as exc:
+            if pname in DEFAULT_PLUGINS:
+                raise
+            reg.broken.append(str(exc))
+            continue
         reg.plugins.append(pname)
-        for kind, (hook_name, base) in KINDS.items():
-            impl = impls[kind].get(pname)
-            if impl is None:
-                continue
-            try:
-                provided = impl() or []
-            except Exception as exc:
-                raise PluginError(f"plugin {pname}: {hook_name}() failed: {exc.__class__.__name__}: {exc}") from exc
-            for cls in provided:
-                if not (isinstance(cls, type) and issubclass(cls, base)) or not cls.name:
-                    raise PluginError(f"plugin {pname}: {hook_name} returned {cls!r}; expected a "
-                                      f"{base.__name__} subclass with a name")
-                if cls.name in reg.components[kind]:
-                    raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {cls.name!r} is "
-                                      f"already provided by {reg.provider[(kind, cls.name)]}")
+        for kind, classes in provided.items():
+            for cls in classes:
                 reg.components[kind][cls.name] = cls
                 reg.provider[(kind, cls.name)] = pname
     return reg
@@ -101,4 +156,5 @@ def build_registry(pm: pluggy.PluginManager) -> Registry:
 @lru_cache(maxsize=1)
 def registry() -> Registry:
     """The registry of all installed plugins (built once per process)."""
-    return build_registry(_plugin_manager())
+    broken: list[str] = []
+    return build_registry(_plugin_manager(broken), broken)

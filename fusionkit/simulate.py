@@ -25,9 +25,8 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
     reg = registry()
     cls = reg.get("simulators", scenario)
     if cls is None:
-        raise ConfigError(f"unknown scenario {scenario!r}; installed simulators: "
-                          f"{', '.join(reg.names('simulators')) or '(none)'} (see `fusionkit plugins`; a third-party "
-                          "scenario needs its package installed)")
+        raise ConfigError(reg.unknown("simulators", scenario) + " (a third-party scenario needs its package "
+                          "installed)")
     params: dict = {}
     for assignment in overrides:
         apply_override(params, assignment)
@@ -36,7 +35,7 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
     sim = cls()
     data = sim.simulate(params, np.random.default_rng(seed))
     written: list[Path] = []
-    with atomic_directory(out) as tmp:
+    with atomic_directory(out, "simulate") as tmp:
         for sub in ("data", "truth", "robots"):
             (tmp / sub).mkdir()
         sources = []

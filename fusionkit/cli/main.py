@@ -6,33 +6,21 @@ import argparse
 import json
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
+from .. import __version__
 from ..errors import FusionkitError, SolverError
 
 EXIT_ERROR, EXIT_INTERNAL = 2, 3
 
 
-def _progress():
-    if not sys.stderr.isatty():
+def _progress(args):
+    """A status line on stderr (a terminal only; not with -q) for work that takes a while."""
+    if args.quiet or not sys.stderr.isatty():
         return None
-
-    def show(it: int, cost: float) -> None:
-        text = f"iteration {it}" + ("" if cost != cost else f", cost {cost:.6g}")
-        print(f"\r  {text}   ", end="", file=sys.stderr, flush=True)
-    return show
-
-
-def _output_folder(out: Path) -> Path:
-    """Fail before any work if `out` cannot become a folder (it, or a parent, is an existing file)."""
-    for part in (out, *out.parents):
-        if part.exists():
-            if not part.is_dir():
-                where = "exists and is not a folder" if part == out else f"is inside {part}, which is a file"
-                raise FusionkitError(f"--out {out}: {where}; expected a folder path (created, or replaced "
-                                     "only when everything succeeded)")
-            break
-    return out
+    from ..progress import StatusLine
+    return StatusLine()
 
 
 def _write_error(out: Path, exc: OSError) -> FusionkitError:
@@ -40,32 +28,46 @@ def _write_error(out: Path, exc: OSError) -> FusionkitError:
                           "written; expected a writable folder")
 
 
+def _warn_broken_plugins() -> None:
+    from ..plugins import registry
+    for reason in registry().broken:
+        print(f"fusionkit: warning: {reason}; its types are unavailable (configs that do not use them run)",
+              file=sys.stderr)
+
+
 def cmd_run(args) -> int:
     from ..config.loader import load_config
     from ..pipeline import estimate
     from ..report.outputs import write_outputs
     from ..report.summary import summary_text
-    from ..report.writer import atomic_directory
+    from ..report.writer import atomic_directory, check_output_folder
 
     config = load_config(args.config, args.set)
-    out = _output_folder(Path(args.out) if args.out else Path("out") / config.name)
-    progress = _progress()
-    try:
+    out = Path(args.out) if args.out else Path("out") / config.name
+    inputs = config.input_paths()
+    check_output_folder(out, inputs)  # before any work: refuse a folder fusionkit may not replace
+    with _status(_progress(args)) as progress:
         result = estimate(config, progress)
-    except BaseException:
         if progress:
-            print("\r\033[K", end="", file=sys.stderr)  # erase the progress line: the error is the only line
-        raise
-    if progress:
-        print(file=sys.stderr)
-    try:
-        with atomic_directory(out) as tmp:
-            write_outputs(result, tmp, plots=config.output.get("plots", True) and not args.no_plots)
-    except OSError as exc:
-        raise _write_error(out, exc) from None
+            progress.stage("writing outputs")
+        try:
+            with atomic_directory(out, "run", inputs) as tmp:
+                write_outputs(result, tmp, plots=config.output.get("plots", True) and not args.no_plots)
+        except OSError as exc:
+            raise _write_error(out, exc) from None
     print(summary_text(result))
     print(f"  outputs: {out}/ (report.json, calibration.yaml, trajectories/, plots/)")
     return 0
+
+
+@contextmanager
+def _status(progress):
+    """Show `progress` while the block runs; erase it after, error or not (the error is the only line)."""
+    if progress is None:
+        yield None
+        return
+    with progress:
+        yield progress
 
 
 def cmd_validate(args) -> int:
@@ -118,38 +120,88 @@ def cmd_plugins(args) -> int:
 
 
 def cmd_simulate(args) -> int:
+    from ..report.writer import check_output_folder
     from ..simulate import write_dataset
-    out = _output_folder(Path(args.out))
+    out = Path(args.out)
+    check_output_folder(out)
     try:
-        files = write_dataset(args.scenario, out, args.set, args.seed)
+        with _status(_progress(args)) as progress:
+            if progress:
+                progress.stage(f"simulating {args.scenario}")
+            files = write_dataset(args.scenario, out, args.set, args.seed)
     except OSError as exc:
         raise _write_error(out, exc) from None
     print(f"wrote {len(files)} files to {out}/; run it with: fusionkit run {out / 'config.yaml'}")
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose epilog is made only when help is shown (listing installed
+    simulators loads every plugin, which `--version` or a run must not wait for)."""
+
+    def __init__(self, *args, epilog_factory=None, **kwargs):
+        super().__init__(*args, formatter_class=argparse.RawDescriptionHelpFormatter, **kwargs)
+        self.epilog_factory = epilog_factory
+
+    def format_help(self) -> str:
+        if self.epilog_factory is not None:
+            self.epilog = self.epilog_factory()
+        return super().format_help()
+
+
+def scenario_listing() -> str:
+    """Installed simulators, one line each, and their parameters with default values."""
+    from ..plugins import registry
+    reg = registry()
+    lines = ["installed scenarios (parameters with their defaults; change them with --set KEY=VALUE):"]
+    for name in reg.names("simulators"):
+        cls = reg.get("simulators", name)
+        lines.append(f"  {name:<18} {cls.summary}")
+        params = [f"{key}={json.dumps(cls.defaults[key])}" if key in cls.defaults else f"{key} (required)"
+                  for key in cls.schema.get("properties", {})]
+        if params:
+            lines.append("      " + ", ".join(params))
+    return "\n".join(lines)
+
+
+def _common_options(debug_default) -> argparse.ArgumentParser:
+    """--debug and -q, accepted before or after the command (after it, they keep the value given
+    before it unless given again)."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=debug_default,
+                        help="show tracebacks of errors")
+    common.add_argument("-q", "--quiet", action="store_true", default=debug_default,
+                        help="no progress display on stderr")
+    return common
+
+
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="fusionkit", description="Robot calibration and state estimation with "
-                                "factor graphs, declared in YAML.")
-    p.add_argument("--debug", action="store_true", help="show tracebacks")
-    sub = p.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="solve a config and write report.json, calibration.yaml, trajectories, plots")
+    p = _Parser(prog="fusionkit", description="Robot calibration and state estimation with factor graphs, "
+                "declared in YAML.", parents=[_common_options(False)])
+    p.add_argument("--version", action="version", version=f"fusionkit {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    common = [_common_options(argparse.SUPPRESS)]
+    run = sub.add_parser("run", parents=common,
+                         help="solve a config and write report.json, calibration.yaml, trajectories, plots")
     run.add_argument("config")
-    run.add_argument("--out", help="output folder (default: out/<config name>)")
+    run.add_argument("--out", help="output folder (default: out/<config name>); replaced only when it is new, "
+                     "empty or an earlier fusionkit output, never when it holds an input")
     run.add_argument("--no-plots", action="store_true", help="skip plots/*.png")
-    val = sub.add_parser("validate", help="check config, data and plugins without solving")
+    val = sub.add_parser("validate", parents=common, help="check config, data and plugins without solving")
     val.add_argument("config")
     for cmd in (run, val):
         cmd.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                          help="override a config value, e.g. solver.type=isam2 (repeatable)")
-    plug = sub.add_parser("plugins", help="list installed plugins and what each provides")
+    plug = sub.add_parser("plugins", parents=common, help="list installed plugins and what each provides")
     plug.add_argument("--json", action="store_true")
-    sim = sub.add_parser("simulate", help="write a synthetic dataset, its truth and a runnable config")
-    sim.add_argument("scenario", help="a simulator name (see `fusionkit plugins`)")
-    sim.add_argument("--out", required=True)
+    sim = sub.add_parser("simulate", parents=common, epilog_factory=scenario_listing,
+                         help="write a synthetic dataset, its truth and a runnable config")
+    sim.add_argument("scenario", help="an installed scenario (listed below)")
+    sim.add_argument("--out", required=True, help="output folder; replaced only when it is new, empty or an "
+                     "earlier fusionkit output")
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a simulator parameter, e.g. duration=10")
+                     help="override a scenario parameter, e.g. duration=10")
     return p
 
 
@@ -164,6 +216,7 @@ def _one_line(exc: BaseException) -> str:
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
+        _warn_broken_plugins()
         return COMMANDS[args.command](args)
     except FusionkitError as exc:
         if args.debug:

@@ -47,6 +47,33 @@ class RunConfig:
         p = Path(path)
         return p if p.is_absolute() else self.base_dir / p
 
+    def input_paths(self) -> list[Path]:
+        """Everything this run reads: the config, the robot description files, and each existing file
+        or folder a string of either names (data, truth, overrides). Output folders must avoid them."""
+        docs = [(self.doc, self.base_dir)] + [(r.description.doc, r.description.doc.file.parent)
+                                             for r in self.robots.values()]
+        found = {self.doc.file.resolve()}
+        for doc, base in docs:
+            found.add(doc.file.resolve())
+            for text in _strings(doc.data):
+                path = Path(text).expanduser()
+                path = path if path.is_absolute() else base / path
+                if text.strip() and path.exists():
+                    found.add(path.resolve())
+        return sorted(found)
+
+
+def _strings(node: Any) -> Iterable[str]:
+    """Every string value inside a YAML node (mappings, lists), depth first."""
+    if isinstance(node, str):
+        yield node
+    elif isinstance(node, dict):
+        for value in node.values():
+            yield from _strings(value)
+    elif isinstance(node, list):
+        for value in node:
+            yield from _strings(value)
+
 
 def _entry_schema(cls: type, extra_keys: dict) -> dict:
     schema = dict(cls.schema)
@@ -62,8 +89,7 @@ def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys:
     for spec in specs:
         cls = reg.get(kind, spec.type)
         if cls is None:
-            raise spec.error("type", f"unknown {kind[:-1].replace('_', ' ')} {spec.type!r}; installed: "
-                             f"{', '.join(reg.names(kind)) or '(none)'} (see `fusionkit plugins`)")
+            raise spec.error("type", reg.unknown(kind, spec.type))
         validate_against(doc, _entry_schema(cls, extra_keys), spec.data, spec.path)
         instances.append(cls())
     return instances
@@ -87,8 +113,7 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
         desc = load_description(raw["description"], base, doc, path + ("description",))
         model = reg.get("robot_models", desc.model)
         if model is None:
-            raise desc.error(("model",), f"unknown robot model {desc.model!r}; installed: "
-                             f"{', '.join(reg.names('robot_models'))}")
+            raise desc.error(("model",), reg.unknown("robot_models", desc.model))
         model_schema = dict(model.schema)
         # the common keys were validated already; listing them keeps "accepted keys" complete
         model_schema["properties"] = {**{k: {} for k in DESCRIPTION_KEYS}, **model.schema.get("properties", {})}

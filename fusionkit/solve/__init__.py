@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Callable
-
 import gtsam
 import numpy as np
 
 from ..graph.builder import Problem
+from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution
 from .factorization import linear_settings, qr_marginals
@@ -19,9 +18,11 @@ FIXED_LAG_ALLOWED_RISE = 9.0  # relative: a fixed-lag cost ten times the initial
 
 
 def solve(problem: Problem, settings: dict, marginal_keys: set[int],
-          progress: Callable[[int, float], None] | None = None) -> SolveResult:
+          progress: Progress | None = None) -> SolveResult:
     """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`."""
     kind = settings.get("type", "batch")
+    if progress:
+        progress.stage(f"solving ({kind})")
     if kind == "batch":
         result = solve_batch(problem, settings, progress)
     elif kind == "isam2":
@@ -37,6 +38,8 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
                    settings.get("max_cost_ratio", float("inf") if lagged else DEFAULT_MAX_COST_RATIO),
                    FIXED_LAG_ALLOWED_RISE if lagged else 1e-6)
     if settings.get("marginals", True) and kind != "fixed_lag":
+        if progress:
+            progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
         if kind == "batch" and linear_settings(settings)[0]:
             result.covariances = qr_marginals(graph, result.values, marginal_keys)
         else:

@@ -52,7 +52,8 @@ def test_run_scaled_vo_writes_outputs(tmp_path, capsys):
     assert captured.err == ""
     assert captured.out.startswith("fusionkit: scaled_vo_mocap: batch-lm, ")
     assert f"  outputs: {out}/" in captured.out
-    assert sorted(p.name for p in out.iterdir()) == ["calibration.yaml", "report.json", "trajectories"]
+    assert sorted(p.name for p in out.iterdir()) == [".fusionkit-output", "calibration.yaml", "report.json",
+                                                     "trajectories"]
     assert [p.name for p in tmp_path.iterdir()] == ["result"]  # no temporary folder left beside it
     report = json.loads((out / "report.json").read_text())
     assert report["name"] == "scaled_vo_mocap"
@@ -68,15 +69,6 @@ def test_run_scaled_vo_writes_outputs(tmp_path, capsys):
     trajectory = read_tum(out / "trajectories" / "cam.tum", "cam")
     assert len(trajectory) == 150
     assert trajectory.t[-1] == pytest.approx(149 / 30, abs=1e-6)
-
-
-def test_run_replaces_an_existing_output_folder(tmp_path, capsys):
-    out = tmp_path / "result"
-    out.mkdir()
-    (out / "stale.txt").write_text("old run")
-    assert main(["run", str(SCALED_VO), *FAST, "--out", str(out), "--no-plots"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["calibration.yaml", "report.json", "trajectories"]
-    assert [p.name for p in tmp_path.iterdir()] == ["result"]
 
 
 @pytest.mark.parametrize("solver, name", [("isam2", "isam2"), ("batch", "batch-gn")])
@@ -130,7 +122,7 @@ def test_simulate_writes_a_dataset_whose_config_recovers_the_scale(tmp_path, cap
     out = capsys.readouterr().out
     assert out == f"wrote 6 files to {data}/; run it with: fusionkit run {data / 'config.yaml'}\n"
     files = sorted(str(p.relative_to(data)) for p in data.rglob("*") if p.is_file())
-    assert files == ["config.yaml", "data/mocap.tum", "data/vo.tum", "robots/cam.yaml", "truth/calibration.yaml",
+    assert files == [".fusionkit-output", "config.yaml", "data/mocap.tum", "data/vo.tum", "robots/cam.yaml", "truth/calibration.yaml",
                      "truth/cam.tum"]
     config = yaml.safe_load((data / "config.yaml").read_text())
     assert config["sources"] == [{"type": "tum", "name": "vo", "path": "data/vo.tum"},
