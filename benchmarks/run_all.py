@@ -7,7 +7,8 @@ baselines measured in the same process.
 
 Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
 cable_sag (sagging cables: Table 5.2, finite-element data, static simulator and calibration speed),
-uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed).
+uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed),
+busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.
 """
 
@@ -27,7 +28,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "busy_core")
 
 
 def _git(*args: str) -> str:
@@ -92,6 +93,9 @@ def summary(results: dict) -> str:
     if "uwb" in results:
         import bench_uwb
         lines += bench_uwb.summary(results["uwb"])
+    if "busy_core" in results:
+        import bench_busy_core
+        lines += bench_busy_core.summary(results["busy_core"])
     return "\n".join(lines)
 
 
@@ -106,6 +110,7 @@ def main(argv=None) -> int:
         ap.error(f"unknown section(s) {', '.join(sorted(unknown))}; choose from {', '.join(SECTIONS)}")
 
     import bench_batch
+    import bench_busy_core
     import bench_cable_rigid
     import bench_cable_sag
     import bench_factors
@@ -113,7 +118,8 @@ def main(argv=None) -> int:
     import bench_scaled_vo
     import bench_uwb
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb}
+               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb,
+               "busy_core": bench_busy_core}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

@@ -22,6 +22,7 @@ from .graph.builder import BuildContext, Problem
 from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
 from .progress import Progress
+from .threads import one_blas_thread
 from .robots.calibration_file import calibration_entries
 from .solve import solve
 from .solve.result import SolveResult
@@ -207,7 +208,13 @@ def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Probl
 
 
 def estimate(config: RunConfig, progress: Progress | None = None) -> RunResult:
-    """Run everything short of writing files; `progress` hears of each stage and solver iteration."""
+    """Run everything short of writing files (with one BLAS thread, see fusionkit.threads);
+    `progress` hears of each stage and solver iteration."""
+    with one_blas_thread():
+        return _estimate(config, progress)
+
+
+def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     timings = {}
     tic = time.perf_counter()
     _stage(progress, "reading the data")

@@ -63,3 +63,10 @@ def use_plugins(monkeypatch):
         return reg
 
     return install
+
+
+def pytest_configure(config):
+    """Tests call plugin internals directly too: give them the one BLAS thread fusionkit's own entry
+    points use (fusionkit.threads), so a busy core does not multiply the suite's time."""
+    from fusionkit.threads import one_blas_thread
+    config._fusionkit_blas_limit = one_blas_thread()

@@ -131,7 +131,9 @@ def cmd_simulate(args) -> int:
             files = write_dataset(args.scenario, out, args.set, args.seed)
     except OSError as exc:
         raise _write_error(out, exc) from None
-    print(f"wrote {len(files)} files to {out}/; run it with: fusionkit run {out / 'config.yaml'}")
+    config = out / "config.yaml"
+    hint = f"run it with: fusionkit run {config}" if config in files else f"{args.scenario} writes no config"
+    print(f"wrote {len(files)} files to {out}/; {hint}")
     return 0
 
 
@@ -215,9 +217,11 @@ def _one_line(exc: BaseException) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    from ..threads import one_blas_thread
     try:
         _warn_broken_plugins()
-        return COMMANDS[args.command](args)
+        with one_blas_thread():
+            return COMMANDS[args.command](args)
     except FusionkitError as exc:
         if args.debug:
             raise

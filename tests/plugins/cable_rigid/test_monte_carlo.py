@@ -11,7 +11,6 @@ arbitrary VO frame, with small per-frame noise."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,19 +145,13 @@ def test_noise_free_vo_is_exact_and_consistent():
     assert np.abs((D.z[0] - res.length) - D.offsets).max() < 0.01
 
 
-def test_core_timing_750_poses_5000_particles_4_cables():
-    """Speed target: under 1 s (measured 0.45-0.6 s wall on this 2-core machine; the best of two
-    runs, as other work may share the cores)."""
+def test_750_poses_5000_particles_4_cables_put_every_pulley_within_10_cm():
+    """The benchmark's full-size case (its speed is measured in benchmarks/bench_cable_rigid.py)."""
     D = make_dataset(seed=2)
     c, d, z, L0 = core_inputs(D)
-    seconds = []
-    for run in range(2):
-        tic = time.perf_counter()
-        res = calibrate(c, d, z, L0, REGION, SCALE_RANGE, SIGMA, particles=5000, rng=np.random.default_rng(run),
-                        vo_sigma=(2e-4, 2.5e-4))
-        seconds.append(time.perf_counter() - tic)
+    res = calibrate(c, d, z, L0, REGION, SCALE_RANGE, SIGMA, particles=5000, rng=np.random.default_rng(0),
+                    vo_sigma=(2e-4, 2.5e-4))
     assert z.shape == (4, 750) and res.particles == 5000
-    assert min(seconds) < 1.0
     assert np.linalg.norm(res.pulley - D.pulleys, axis=1).max() < 0.10
 
 

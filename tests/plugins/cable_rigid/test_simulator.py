@@ -5,7 +5,6 @@ config runs and recovers the pulleys and the VO scale."""
 
 from __future__ import annotations
 
-import time
 
 import gtsam
 import numpy as np
@@ -187,13 +186,6 @@ def test_trajectory_moves_along_x_then_y_then_z_inside_the_workspace(smooth):
     assert 2 < angle[mixed].max() < 6
     # smooth: no jumps (30 Hz; measured at most 2.0 m/s)
     assert np.linalg.norm(np.diff(pos, axis=0), axis=1).max() < 2.5 / 30
-
-
-def test_simulation_is_fast():
-    simulate()  # warm up (imports, the description cache)
-    tic = time.perf_counter()
-    simulate(motion="dynamic")
-    assert time.perf_counter() - tic < 0.5  # measured 0.03-0.07 s for 750 poses
 
 
 # ---------------------------------------------------------------------------------- dynamic motion
