@@ -15,7 +15,7 @@ from .components import (  # noqa: E402  (hookimpl must exist before plugins imp
     CheckScope, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput, Spec)
 from .data.stream import POSE_COLUMNS, Stream, pose_stream  # noqa: E402
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError  # noqa: E402
-from .graph.noise import gaussian  # noqa: E402
+from .graph.noise import POSE_SIGMA_SCHEMA, gaussian, pose_sigmas  # noqa: E402
 from .graph.variables import (  # noqa: E402
     IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType, vector_type)
 
@@ -34,6 +34,7 @@ def run(path, overrides=()):
 
 __all__ = ["CheckScope", "ConfigError", "DataError", "FactorType", "FusionkitError", "Initializer",
            "PluginError", "RobotModel", "Simulator", "SolverError", "Source", "SourceOutput", "Spec",
-           "Stream", "POSE_COLUMNS", "pose_stream", "gaussian", "VarType", "vector_type", "POSE3", "POSE2",
+           "Stream", "POSE_COLUMNS", "pose_stream", "gaussian", "pose_sigmas", "POSE_SIGMA_SCHEMA", "VarType",
+           "vector_type", "POSE3", "POSE2",
            "POINT3", "POINT2", "ROT3", "SCALAR", "VELOCITY3", "IMU_BIAS",
            "hookimpl", "load_config", "run", "__version__"]

@@ -162,11 +162,29 @@ class Initializer(Component):
         """Set initial values of the variables this initializer is responsible for."""
 
 
+def _merged(defaults: dict, params: dict) -> dict:
+    out = dict(defaults)
+    for key, value in params.items():
+        base = defaults.get(key)
+        out[key] = _merged(base, value) if isinstance(base, dict) and isinstance(value, dict) else value
+    return out
+
+
 class Simulator(Component):
     """Generates a synthetic dataset with its truth. `schema` covers its parameters and
     `defaults` gives the value of every optional one."""
 
     defaults: ClassVar[dict] = {}
+
+    @classmethod
+    def resolve(cls, params: dict, doc: Document, path: tuple = ()) -> dict:
+        """`params` over the defaults (nested mappings merged key by key, so `--set noise.rotation=...`
+        keeps the default translation), validated as a whole against `schema`; errors are located
+        at `path` in `doc`."""
+        from .config.schema import validate_against
+        full = _merged(cls.defaults, params)
+        validate_against(doc, cls.schema, full, path)
+        return full
 
     @abstractmethod
     def stream_columns(self, params: dict) -> dict[str, tuple[str, ...]]:

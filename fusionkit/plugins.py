@@ -58,7 +58,8 @@ class Registry:
     def unknown(self, kind: str, name: str) -> str:
         """The message for a `type:` nothing installed provides, naming what is installed and,
         when some plugin failed to load, that it might have been the one."""
-        text = (f"unknown {kind[:-1].replace('_', ' ')} {name!r}; installed: "
+        noun = "scenario" if kind == "simulators" else kind[:-1].replace("_", " ")
+        text = (f"unknown {noun} {name!r}; installed: "
                 f"{', '.join(self.names(kind)) or '(none)'} (see `fusionkit plugins`)")
         if self.broken:
             text += f"; {len(self.broken)} plugin(s) failed to load: " + "; ".join(self.broken)

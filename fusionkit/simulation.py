@@ -7,10 +7,9 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-POSE_SIGMA_SCHEMA = {"type": "object",
-                     "properties": {"rotation": {"type": "number", "minimum": 0},
-                                    "translation": {"type": "number", "minimum": 0}},
-                     "additionalProperties": False}
+from .graph.noise import pose_sigma_schema
+
+POSE_NOISE_SCHEMA = pose_sigma_schema(allow_zero=True)  # a simulated pose noise level; 0 = noiseless
 
 
 def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarray,
@@ -37,7 +36,7 @@ def noisy(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator) -> li
 def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
              scale: float = 1.0) -> list[gtsam.Pose3]:
     """Integrated noisy increments starting at identity. Translations are divided by `scale`
-    (eq. 4.3) before the noise is applied, so sigma.translation is in the odometry's own units."""
+    (thesis eq. 4.3) before the noise is applied, so sigma.translation is in the odometry's own units."""
     increments = [a.between(b) for a, b in zip(poses[:-1], poses[1:])]
     scaled = noisy([gtsam.Pose3(d.rotation(), d.translation() / scale) for d in increments], sigma, rng)
     out = [gtsam.Pose3()]

@@ -93,15 +93,11 @@ class SimulateSource(Source):
 
     def _simulator(self, spec: Spec):
         from ..plugins import registry
-        from ..config.schema import validate_against
         reg = registry()
         cls = reg.get("simulators", spec["scenario"])
         if cls is None:
-            raise spec.error("scenario", f"unknown scenario {spec['scenario']!r}; installed: "
-                             f"{', '.join(reg.names('simulators')) or '(none)'}")
-        params = dict(spec.get("params") or {})
-        validate_against(spec.doc, cls.schema, params, spec.path + ("params",))
-        return cls(), {**cls.defaults, **params}
+            raise spec.error("scenario", reg.unknown("simulators", spec["scenario"]))
+        return cls(), cls.resolve(dict(spec.get("params") or {}), spec.doc, spec.path + ("params",))
 
     def check(self, spec: Spec, scope) -> None:
         self._simulator(spec)

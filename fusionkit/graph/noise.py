@@ -16,6 +16,25 @@ KERNELS = {
 }
 
 
+def pose_sigma_schema(allow_zero: bool = False) -> dict:
+    """The one schema of a pose's `sigma: {rotation: rad, translation: m}`: both keys required, each
+    > 0 (a factor's noise); with `allow_zero`, >= 0 (a simulator's noise level: 0 = noiseless)."""
+    number = {"type": "number", "minimum" if allow_zero else "exclusiveMinimum": 0}
+    return {"type": "object", "properties": {"rotation": number, "translation": number},
+            "required": ["rotation", "translation"], "additionalProperties": False}
+
+
+POSE_SIGMA_SCHEMA = pose_sigma_schema()
+
+
+def pose_sigmas(sigma: dict, planar: bool) -> np.ndarray:
+    """Per tangent axis, in GTSAM's order, from `{rotation, translation}`: Pose3 [rot x3 (rad),
+    trans x3 (m)]; Pose2 [x, y (m), theta (rad)]."""
+    if planar:
+        return np.array([sigma["translation"], sigma["translation"], sigma["rotation"]], dtype=float)
+    return np.array([sigma["rotation"]] * 3 + [sigma["translation"]] * 3, dtype=float)
+
+
 def gaussian(sigmas) -> gtsam.noiseModel.Base:
     """Diagonal (or isotropic, for one sigma) Gaussian noise model in the residual's units."""
     s = np.atleast_1d(np.asarray(sigmas, dtype=float))

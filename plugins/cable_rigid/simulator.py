@@ -1,4 +1,4 @@
-"""`cable.cdpr`: synthetic datasets of a suspended cable-driven parallel robot (spec cable_rigid.md,
+"""`cable.cdpr`: synthetic datasets of a suspended cable-driven parallel robot (docs/models/cable_rigid.md,
 ARAS-CAM: 4 cables, monocular camera on the end-effector, 750 poses at 30 Hz).
 
 The geometry comes from a shipped description (robots/<robot>.yaml). The TRUE pulleys are the
@@ -17,7 +17,7 @@ pendulum driven by the commanded accelerations (peak horizontal deviation `swing
 and tilts in the 2 free directions -- so the encoders cannot see it and forward kinematics (which
 must assume the orientation) misses it, while the VO (worse by `dynamic_vo_factor`) sees it.
 
-Streams: `vo` (scaled monocular VO, eq. 4.3), `lengths` (l0..l{n-1}, eq. 4.1/4.2), `tensions`
+Streams: `vo` (scaled monocular VO, thesis eq. 4.3), `lengths` (l0..l{n-1}, thesis eqs. 4.1/4.2), `tensions`
 (T0..T{n-1} in N, static equilibrium, quantized), `mocap` (noisy true poses, base frame).
 Everything but the per-pose gtsam conversions and the tiny per-pose NNLS is vectorized.
 """
@@ -37,7 +37,7 @@ from fusionkit import Simulator, SourceOutput
 from fusionkit.config.yamlio import SafeLoader
 from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
 from fusionkit.errors import ConfigError
-from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
 from fusionkit.simulation import noisy, odometry, sample_times
 
 ROBOTS_DIR = Path(__file__).resolve().parents[2] / "robots"
@@ -100,7 +100,7 @@ def onto_best_fit_plane(points: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------- kinematics
 def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
-    """Lengths l*_i (N, n) of eq. 4.1 and the lever arms R b_i (N, n, 3) of each attachment."""
+    """Lengths l*_i (N, n) of thesis eq. 4.1 and the lever arms R b_i (N, n, 3) of each attachment."""
     arms = np.einsum("kij,cj->kci", rot, geo.attachments)
     d = geo.pulleys[None] - (pos[:, None, :] + arms)
     return np.linalg.norm(d, axis=2), arms
@@ -130,7 +130,7 @@ def static_tensions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarr
 
 def encoder_readings(lengths: np.ndarray, tensions: np.ndarray, offsets: np.ndarray,
                      stiffness_EA: float | None) -> np.ndarray:
-    """Noiseless z_i = (1 - T_i/EA) l*_i + l0_i (eq. 4.2), or l*_i + l0_i without stiffness (4.1)."""
+    """Noiseless z_i = (1 - T_i/EA) l*_i + l0_i (thesis eq. 4.2), or l*_i + l0_i without stiffness (4.1)."""
     stretch = 0.0 if stiffness_EA is None else tensions / stiffness_EA
     return (1.0 - stretch) * lengths + offsets
 

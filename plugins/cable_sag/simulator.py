@@ -1,5 +1,5 @@
 """`cable.sag_static`: static poses of a suspended 4-cable robot with heavy sagging cables, as the
-calibration of spec cable_sag.md needs them (Table 5.2 setting).
+calibration of docs/models/cable_sag.md needs them (the setting of thesis Table 5.2).
 
 The robot is a shipped description (`cdpr_large` or `cdpr_small`). Its TRUE pulleys are the
 description's perturbed uniformly by +-initial_error/sqrt(3) per axis, and its true encoder
@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 from fusionkit import Simulator, SourceOutput
 from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
 from fusionkit.errors import ConfigError
-from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
 from fusionkit.simulation import noisy
 from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_description
 
@@ -38,7 +38,7 @@ BOX = {"type": "object", "properties": {"min": {"type": "array", "items": {"type
        "required": ["min", "max"], "additionalProperties": False}
 # per robot: where the end-effector goes (the external finite-element poses span about this), the
 # initial error of the source's protocol, the force sensor's noise (about 1 % of the tension), the
-# vision system's pose noise: centimetre-level on the 250 m robot (the spec), millimetre-level on
+# vision system's pose noise: centimetre-level on the 250 m robot (the thesis), millimetre-level on
 # the lab robot (the source's small-robot errors need it: 1 cm there leaves 0.65 m, at the prior)
 PER_ROBOT = {
     "cdpr_large": {"workspace": {"min": [-28.0, -28.0, -4.0], "max": [28.0, 28.0, 28.0]},

@@ -1,5 +1,5 @@
 """Generic pose factor types: absolute pose, origin prior, relative pose (odometry), relative pose
-with unknown scale (monocular VO, spec eq. 4.3), co-registration between robots, and the
+with unknown scale (monocular VO, thesis eq. 4.3), co-registration between robots, and the
 random walk that chains a time-varying parameter."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Spec
+from fusionkit import POSE_SIGMA_SCHEMA, FactorType, Spec, pose_sigmas
 from fusionkit.data.association import interpolate_poses, segment_ids
 from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
 from fusionkit.graph.noise import gaussian
@@ -18,19 +18,8 @@ from fusionkit.testing import FactorExample
 
 from .residuals import co_registration_residual, scaled_between_residual
 
-SIGMA = {"type": "object",
-         "properties": {"rotation": {"type": "number", "exclusiveMinimum": 0},
-                        "translation": {"type": "number", "exclusiveMinimum": 0}},
-         "required": ["rotation", "translation"], "additionalProperties": False}
+SIGMA = POSE_SIGMA_SCHEMA
 TOLERANCE = {"type": "number", "minimum": 0}
-
-
-def pose_sigmas(spec: Spec, planar: bool) -> np.ndarray:
-    """[rot x3, trans x3] for Pose3 or [x, y, theta] for Pose2 from `sigma: {rotation, translation}`."""
-    s = spec["sigma"]
-    if planar:
-        return np.array([s["translation"], s["translation"], s["rotation"]])
-    return np.array([s["rotation"]] * 3 + [s["translation"]] * 3)
 
 
 def to_pose2(p: gtsam.Pose3) -> gtsam.Pose2:
@@ -98,7 +87,7 @@ class AbsolutePose(FactorType):
         stream = ctx.stream(spec["stream"])
         assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
         planar = states.family.vartype is POSE2
-        noise = ctx.noise(pose_sigmas(spec, planar), spec)
+        noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
         mount_inv = mount_of(ctx, spec).inverse()
         poses = poses_from_array(stream.pose_array()[assoc.row])
         for k, meas in zip(assoc.state, poses):
@@ -136,7 +125,7 @@ class OriginPrior(FactorType):
         except ValueError as exc:
             raise spec.error("pose", f"{exc} for a {vt.name} state") from None
         key = ctx.pose_key(robot, 0)
-        ctx.add(vt.prior(key, pose, ctx.noise(pose_sigmas(spec, vt is POSE2), spec)), spec,
+        ctx.add(vt.prior(key, pose, ctx.noise(pose_sigmas(spec["sigma"], vt is POSE2), spec)), spec,
                 ctx.state_time(robot, 0))
         ctx.set_initial(key, pose)
 
@@ -162,7 +151,7 @@ class RelativePose(FactorType):
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
         planar = ctx.state_set(robot).family.vartype is POSE2
-        noise = ctx.noise(pose_sigmas(spec, planar), spec)
+        noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
         for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
             delta = pa.between(pb)
             a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
@@ -191,7 +180,8 @@ def scaled_between_factor(a: int, b: int, s: int, delta_unscaled: gtsam.Pose3, n
 
 class ScaledRelativePose(FactorType):
     name = "pose.scaled_relative"
-    summary = ("monocular visual odometry: relative pose with an unknown scale shared by the sequence (eq. 4.3); "
+    summary = ("monocular visual odometry: relative pose with an unknown scale shared by the sequence "
+               "(thesis eq. 4.3); "
                "sigma.translation in the VO's own units")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
@@ -214,7 +204,7 @@ class ScaledRelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        noise = ctx.noise(pose_sigmas(spec, False), spec)
+        noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
         scale = ctx.parameter(robot, spec["scale"])
         for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
             a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
@@ -248,7 +238,7 @@ BASE_TRANSFORM = "base_in_{robot}"
 class CoRegistration(FactorType):
     name = "pose.co_registration"
     summary = ("robot-to-robot relative pose a_T_b: links two pose chains and estimates the transform "
-               "between their base frames (spec fig. 3.3)")
+               "between their base frames (thesis fig. 3.3)")
     robot_fields = ("robot", "other")
     stream_fields = ("stream",)
     schema = {"type": "object",
@@ -273,9 +263,9 @@ class CoRegistration(FactorType):
         rows = np.intersect1d(assoc_a.row, assoc_b.row)
         ka = dict(zip(assoc_a.row, assoc_a.state))
         kb = dict(zip(assoc_b.row, assoc_b.state))
-        prior = pose_sigmas({"sigma": spec["base_sigma"]}, False) if "base_sigma" in spec.data else None
+        prior = pose_sigmas(spec["base_sigma"], False) if "base_sigma" in spec.data else None
         base = ctx.static_variable(b, BASE_TRANSFORM.format(robot=a), POSE3, gtsam.Pose3(), prior)
-        noise = ctx.noise(pose_sigmas(spec, False), spec)
+        noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
         for row, z in zip(rows, poses_from_array(stream.pose_array()[rows])):
             xa, xb = ctx.pose_key(a, int(ka[row])), ctx.pose_key(b, int(kb[row]))
             time = max(ctx.state_time(a, int(ka[row])), ctx.state_time(b, int(kb[row])))

@@ -8,7 +8,7 @@ import numpy as np
 
 from fusionkit import Simulator, SourceOutput
 from fusionkit.data.stream import pose_array_from, pose_stream, poses_from_array
-from fusionkit.simulation import POSE_SIGMA_SCHEMA as SIGMA
+from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
 from fusionkit.simulation import noisy, odometry, sample_times, smooth_trajectory
 
 
@@ -57,8 +57,7 @@ class ScaledVoSimulator(Simulator):
             "parameters": {"vo_scale": {"type": "scalar", "value": 1.0, "sigma": 10.0}}}}
 
     def config(self, params: dict) -> dict:
-        vo_sigma = {k: max(v, 1e-4) for k, v in params["vo_sigma"].items()}
-        mocap_sigma = {k: max(v, 1e-4) for k, v in params["mocap_sigma"].items()}
+        vo_sigma, mocap_sigma = _floored(params["vo_sigma"]), _floored(params["mocap_sigma"])
         return {
             "robots": {"cam": {"description": "robots/cam.yaml", "states": {"stream": "vo"}}},
             "factors": [
@@ -115,6 +114,37 @@ class TwoRobotsSimulator(Simulator):
         truth = {"a": pose_stream("a", t, pose_array_from(a)), "b": pose_stream("b", t, pose_array_from(b))}
         calib = {"b": {"base_in_a": {"type": "pose3", "value": pose_array_from([base_b])[0].tolist()}}}
         return SourceOutput(streams, truth, calib)
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        base = {"name": "mobile_base", "summary": "mobile base with wheel odometry and a motion-capture marker "
+                "at the base origin", "model": "generic", "frames": ["world", "base"],
+                "sensors": {"wheel_odometry": {"type": "odometry", "frame": "base"},
+                            "marker": {"type": "mocap_marker", "frame": "base"}}}
+        return {"a": base, "b": base}
+
+    def config(self, params: dict) -> dict:
+        """Both odometry chains, a's motion capture, b's base frame fixed at its start (pose.origin)
+        and a's observations of b, which estimate b/base_in_a (configs/multirobot.yaml)."""
+        return {
+            "robots": {r: {"description": f"robots/{r}.yaml", "states": {"stream": f"{r}_odom"}} for r in "ab"},
+            "factors": [
+                *({"type": "pose.relative", "robot": r, "stream": f"{r}_odom", "sigma": _floored(params["odom_sigma"])}
+                  for r in "ab"),
+                {"type": "pose.absolute", "robot": "a", "stream": "a_mocap", "sensor": "marker",
+                 "sigma": _floored(params["mocap_sigma"])},
+                {"type": "pose.origin", "robot": "b", "sigma": {"rotation": 1e-4, "translation": 1e-4}},
+                {"type": "pose.co_registration", "robot": "a", "other": "b", "stream": "a_sees_b",
+                 "sigma": _floored(params["relative_sigma"])}],
+            "initializers": [
+                {"type": "pose.dead_reckoning", "robot": "a", "stream": "a_odom", "anchor": "a_mocap"},
+                {"type": "pose.dead_reckoning", "robot": "b", "stream": "b_odom"},
+                {"type": "pose.base_transform", "robot": "a", "other": "b", "stream": "a_sees_b"}],
+            "solver": {"type": "batch", "method": "lm"}}
+
+
+def _floored(sigma: dict) -> dict:
+    """A simulated noise level as a factor sigma: at least 1e-4 (rad, m), so noise-free data stay solvable."""
+    return {k: max(v, 1e-4) for k, v in sigma.items()}
 
 
 SIMULATORS = [ScaledVoSimulator, TwoRobotsSimulator]

@@ -1,4 +1,4 @@
-"""Factor types of the UWB plugin (spec uwb.md).
+"""Factor types of the UWB plugin (models: docs/models/uwb.md).
 
 `uwb.range`: two-way range from a tag (a sensor of the robot: its mount is the lever arm) to an
 anchor (a point parameter of an anchors description), z = (1 + alpha) ||X b - a|| + beta + w.
@@ -17,10 +17,9 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Spec, gaussian
+from fusionkit import POSE_SIGMA_SCHEMA, FactorType, Spec, gaussian, pose_sigmas
 from fusionkit.geometry import range_factor
 from fusionkit.graph.variables import POINT2, POINT3, POSE2
-from fusionkit.simulation import POSE_SIGMA_SCHEMA
 from fusionkit.testing import FactorExample
 
 from .residuals import scaled_range_residual, tag_to_tag_residual, unicycle_increment
@@ -251,7 +250,7 @@ class DiffDriveOdometry(FactorType):
         stream = ctx.stream(spec["stream"])
         vr, vl = stream.column(spec.get("right", "v_right")), stream.column(spec.get("left", "v_left"))
         edges = np.append(stream.t, np.inf)
-        sig = spec["sigma"]
+        sig = pose_sigmas(spec["sigma"], planar=True)
         for k in range(1, len(states)):
             t0, t1 = float(states.t[k - 1]), float(states.t[k])
             first = max(int(np.searchsorted(stream.t, t0, side="right")) - 1, 0)
@@ -260,7 +259,7 @@ class DiffDriveOdometry(FactorType):
             dt = np.clip(np.minimum(edges[rows + 1], t1) - np.maximum(stream.t[rows], t0), 0.0, None)
             delta = unicycle_increment(vr[rows], vl[rows], dt, float(spec["wheel_distance"]))
             root = np.sqrt(max(t1 - t0, 1e-9))
-            noise = ctx.noise([sig["translation"] * root] * 2 + [sig["rotation"] * root], spec)
+            noise = ctx.noise(sig * root, spec)
             ctx.add(gtsam.BetweenFactorPose2(ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k), delta, noise),
                     spec, t1)
 
@@ -309,13 +308,12 @@ class ConstantVelocity(FactorType):
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         planar = states.family.vartype is POSE2
-        s = spec["sigma"]
+        sig = pose_sigmas(spec["sigma"], planar)
         for k in range(1, len(states) - 1):
             dt1, dt2 = float(states.t[k] - states.t[k - 1]), float(states.t[k + 1] - states.t[k])
             root = np.sqrt(0.5 * (dt1 + dt2))
-            sig = ([s["translation"]] * 2 + [s["rotation"]]) if planar else ([s["rotation"]] * 3 + [s["translation"]] * 3)
             keys = [ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k), ctx.pose_key(robot, k + 1)]
-            factor = gtsam.CustomFactor(ctx.noise(np.asarray(sig) * root, spec), keys,
+            factor = gtsam.CustomFactor(ctx.noise(sig * root, spec), keys,
                                         partial(_constant_velocity_error, dt1, dt2, planar))
             ctx.add(factor, spec, float(states.t[k + 1]))
 

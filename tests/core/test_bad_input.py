@@ -278,13 +278,14 @@ def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
     shown = tmp_path / "b" / "configs" / ".." / "robots" / "handheld_camera.yaml"
     message = fails(capsys, run(config, out), out=out)
     assert message.startswith(f"{shown}:{line_of(robot, 'model:')}: model: unknown robot model 'humanoid'; installed: ")
-    assert "generic" in message.split("installed: ")[1].split(", ")
+    assert message.endswith(" (see `fusionkit plugins`)")
+    assert "generic" in message.split("installed: ")[1].removesuffix(" (see `fusionkit plugins`)").split(", ")
 
 
 def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
     target = tmp_path / "sim"
     message = fails(capsys, ["simulate", "pose.nope", "--out", str(target)], out=target)
-    assert message.startswith("unknown scenario 'pose.nope'; installed simulators: cable.cdpr, cable.sag_static, "
+    assert message.startswith("unknown scenario 'pose.nope'; installed: cable.cdpr, cable.sag_static, "
                               "pose.scaled_vo, pose.two_robots")
     assert fails(capsys, ["simulate", "pose.scaled_vo", "--out", str(target), "--set", "durations=3"], out=target) == (
         "<simulate pose.scaled_vo>: durations: unknown key 'durations'; accepted keys: duration, marker_offset, "
@@ -571,13 +572,11 @@ def test_out_that_is_a_file_fails_before_solving(tmp_path, capsys):
     target = tmp_path / "result"
     target.write_text("keep me")
     assert fails(capsys, run(SCALED_VO, target, *FAST)) == (
-        f"--out {target}: exists and is not a folder; expected a folder path (created, or replaced only when "
-        "everything succeeded)")
+        f"--out {target}: exists and is not a folder; expected a folder path")
     assert target.read_text() == "keep me"
     nested = target / "sub"
     assert fails(capsys, ["simulate", "pose.scaled_vo", "--out", str(nested)]) == (
-        f"--out {nested}: is inside {target}, which is a file; expected a folder path (created, or replaced only "
-        "when everything succeeded)")
+        f"--out {nested}: is inside {target}, which is a file; expected a folder path")
 
 
 def test_failed_run_keeps_the_previous_output(tmp_path, capsys):
@@ -628,3 +627,39 @@ def test_subprocess_unconstrained_and_debug_traceback(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["configs", "robots"]
     debug = _cli("--debug", "validate", str(config), cwd=tmp_path)  # --debug shows the traceback
     assert debug.returncode == 1 and "Traceback" in debug.stderr and "SolverError" in debug.stderr
+
+
+# ---------------------------------------------------------------- pose sigmas: one schema, both keys, > 0
+
+UWB_TV = REPO / "configs" / "uwb_time_varying.yaml"
+
+
+@pytest.mark.parametrize("value, needle", [
+    ("{}", "factors[2].sigma: 'rotation' is required but missing (expected a number > 0)"),
+    ("{rotation: 0.01}", "factors[2].sigma: 'translation' is required but missing"),
+    ("{rotation: 0, translation: 0.1}", "factors[2].sigma.rotation: got 0; expected a number > 0"),
+])
+def test_pose_sigma_needs_both_keys_above_zero(tmp_path, capsys, value, needle):
+    out = tmp_path / "out"
+    assert fails(capsys, ["validate", str(UWB_TV), "--set", f"factors.2.sigma={value}"], needle, out=out) \
+        .endswith(f"(from --set factors.2.sigma={value})")
+
+
+def test_every_pose_sigma_of_every_factor_type_is_the_one_schema():
+    from fusionkit import POSE_SIGMA_SCHEMA
+    from fusionkit.plugins import registry
+    reg = registry()
+    for name in reg.names("factor_types"):
+        for key, sub in reg.get("factor_types", name).schema.get("properties", {}).items():
+            if isinstance(sub, dict) and set(sub.get("properties", {})) == {"rotation", "translation"}:
+                assert sub == POSE_SIGMA_SCHEMA, (name, key)
+
+
+def test_simulator_noise_override_keeps_the_default_of_the_other_key(tmp_path, capsys):
+    folder = tmp_path / "sim"
+    assert main(["simulate", "pose.scaled_vo", "--out", str(folder), "--set", "duration=2",
+                 "--set", "vo_sigma.rotation=0.004"]) == 0
+    capsys.readouterr()
+    assert fails(capsys, ["simulate", "pose.scaled_vo", "--out", str(tmp_path / "b"), "--set",
+                          "vo_sigma.rotation=-1"]) == "<simulate pose.scaled_vo>: vo_sigma.rotation: got -1; expected " \
+                                                     "a number >= 0"
