@@ -110,7 +110,13 @@ class FactorType(Component):
 
     `example()` returns a `fusionkit.testing.FactorExample` (a factor at a consistent state)
     for the contract suite; every factor type must provide one.
+
+    An entry's `robust:` kernel reaches the factors through `ctx.noise(sigmas, spec)`; the builder
+    refuses a factor made without it. A type whose noise comes from its model (IMU preintegration)
+    sets `accepts_robust = False`, and `robust:` on its entries is refused at load.
     """
+
+    accepts_robust: ClassVar[bool] = True
 
     @abstractmethod
     def build(self, ctx: "BuildContext", spec: Spec) -> None:

@@ -90,6 +90,9 @@ def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys:
         cls = reg.get(kind, spec.type)
         if cls is None:
             raise spec.error("type", reg.unknown(kind, spec.type))
+        if "robust" in extra_keys and "robust" in spec.data and not cls.accepts_robust:
+            raise spec.error("robust", f"factor type {spec.type} takes no robust kernel (its noise comes from its "
+                             "model); remove `robust:` from this entry")
         validate_against(doc, _entry_schema(cls, extra_keys), spec.data, spec.path)
         instances.append(cls())
     return instances

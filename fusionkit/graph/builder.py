@@ -13,6 +13,7 @@ from ..components import Spec
 from ..config.loader import RunConfig
 from ..data.association import Association, nearest
 from ..data.stream import Stream
+from ..errors import PluginError
 from ..robots.description import Parameter, RobotDescription
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, with_kernel
@@ -178,7 +179,12 @@ class BuildContext:
 
     def add(self, factor: gtsam.NonlinearFactor, spec: Spec, time: float = STATIC_TIME) -> None:
         """Add a factor made by entry `spec`; `time` is when an incremental solver may add it
-        (the latest state it touches; static-only factors go first)."""
+        (the latest state it touches; static-only factors go first). An entry with `robust:` must
+        have built the factor's noise with `noise(sigmas, spec)`: a kernel silently dropped is refused."""
+        if spec.get("robust") and not isinstance(getattr(factor, "noiseModel", lambda: None)(),
+                                                 gtsam.noiseModel.Robust):
+            raise PluginError(f"{spec.label}: factor type {spec.type} was given `robust:` but built a factor "
+                              "without the kernel (plugin bug: build its noise with ctx.noise(sigmas, spec))")
         self.add_record(factor, spec.label, time)
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:

@@ -314,7 +314,7 @@ class ParameterRandomWalk(FactorType):
                 key = ctx.parameter(robot, name, i, int(ks[j]))
                 step = round(float(dt[j - 1]), 9)
                 if step not in noises:  # one noise model per distinct interval, not per factor
-                    noises[step] = gaussian([spec["sigma"] * np.sqrt(step)] * param.vartype.dim)
+                    noises[step] = ctx.noise([spec["sigma"] * np.sqrt(step)] * param.vartype.dim, spec)
                 ctx.add(param.vartype.between(prev, key, zero, noises[step]), spec, float(states.t[ks[j]]))
                 prev = key
 

@@ -49,6 +49,7 @@ def preintegrate(params, bias: gtsam.imuBias.ConstantBias, t: np.ndarray, sample
 class PreintegratedImu(FactorType):
     name = "imu.preintegrated"
     summary = "IMU samples between consecutive states, preintegrated into GTSAM's native ImuFactor (pose, velocity, bias)"
+    accepts_robust = False  # GTSAM's ImuFactor takes its noise from the preintegrated covariance
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",
