@@ -9,7 +9,7 @@ from typing import Any, Iterable
 from ..components import CheckScope, Spec
 from ..robots.calibration_file import apply_calibration, calibration_entries
 from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
-from .overrides import apply_override
+from .overrides import apply_override, new_key_note, parse_key_path
 from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, validate_against
 from .yamlio import Document, load_yaml
 
@@ -42,6 +42,7 @@ class RunConfig:
     stream_columns: dict[str, tuple[str, ...]] = field(default_factory=dict)
     stream_source: dict[str, int] = field(default_factory=dict)
     refined_factors: list[Spec] = field(default_factory=list)  # solver.refine applied; empty without it
+    notes: list[str] = field(default_factory=list)  # findings while loading (e.g. a --set that added a key)
 
     def resolve(self, path: str) -> Path:
         p = Path(path)
@@ -150,8 +151,12 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "expected a mapping at the top level (robots:, sources:, factors:, ...)")
+    notes = []
     for assignment in overrides:
+        note = new_key_note(doc.data, parse_key_path(assignment.partition("=")[0].strip()), assignment) \
+            if "=" in assignment else None
         doc.overrides[apply_override(doc.data, assignment)] = assignment
+        notes += [note] if note else []
     validate_against(doc, CONFIG_SCHEMA, doc.data)
     reg = registry()
     base = Path(path).resolve().parent
@@ -199,7 +204,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
 
     return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
                      robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,
-                     dict(doc.data.get("output") or {}), streams, stream_source, refined)
+                     dict(doc.data.get("output") or {}), streams, stream_source, refined, notes)
 
 
 def _refined_factors(doc: Document, factors: list[Spec], objs: list, scope) -> list[Spec]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 from typing import Any
 
 import yaml
@@ -18,6 +19,26 @@ def parse_key_path(text: str) -> tuple:
             raise ConfigError(f"--set {text!r}: empty key in path (expected e.g. solver.type=isam2)")
         parts.append(int(raw) if raw.isdigit() else raw)
     return tuple(parts)
+
+
+def new_key_note(data: Any, path: tuple, assignment: str) -> str | None:
+    """When `--set` adds a key the config did not have and an existing key of the same mapping is
+    spelled almost alike, a note naming it (a likely typo the schema may still accept); else None."""
+    node = data
+    for part in path:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and isinstance(part, int) and part < len(node):
+            node = node[part]
+        else:
+            if not isinstance(node, dict) or not isinstance(part, str):
+                return None
+            close = difflib.get_close_matches(part, [k for k in node if isinstance(k, str)], n=1, cutoff=0.75)
+            if not close:
+                return None
+            return (f"--set {assignment}: the config had no key {part!r} there and it was added; did you mean "
+                    f"the existing {close[0]!r}?")
+    return None
 
 
 def _index(key: str, part, node: list, append: bool = False) -> int:

@@ -79,7 +79,7 @@ class BuildContext:
         self.records: list[FactorRecord] = []
         self.initial = gtsam.Values()
         self.key_time: dict[int, float] = {}
-        self.notes: list[str] = []
+        self.notes: list[str] = list(config.notes)
         self.diagnostics: dict[str, dict] = {}
         self.plots: dict[str, Callable[[Path], None]] = {}
         self.states: dict[str, StateSet] = {}
@@ -199,8 +199,23 @@ class BuildContext:
         return a
 
     def problem(self) -> Problem:
-        return Problem(self.records, self.initial, self.keys, self.states, self.key_time, self.notes,
-                       self.diagnostics, self.plots)
+        return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
+                       self.notes + self._unused_notes(), self.diagnostics, self.plots)
+
+    def _unused_notes(self) -> list[str]:
+        """What the config declares but no factor uses: a robot's states, a description parameter."""
+        notes = []
+        for robot, states in self.states.items():
+            if not any(self.initial.exists(states.key(k)) for k in range(len(states))):
+                notes.append(f"robot {robot!r} has {len(states)} states but no factor uses them: they are not "
+                             "estimated (add a factor for the robot, or remove its `states:`)")
+        declared = {(f.robot, f.name.split("[")[0]) for f in self.keys.families()}
+        for robot, setup in self.config.robots.items():
+            unused = [name for name in setup.description.parameters if (robot, name) not in declared]
+            if unused:
+                notes.append(f"robot {robot!r}: parameter(s) {', '.join(unused)} used by no factor: not estimated, "
+                             "reported nowhere")
+        return notes
 
     # --- diagnostics and figures -------------------------------------------------------------
     def add_diagnostic(self, label: str, report: dict) -> None:
