@@ -96,6 +96,14 @@ class CheckScope:
             raise spec.error(param_key, f"parameter {name!r} is a {desc.parameters[name].vartype.name}; "
                              f"expected a {vartype}")
 
+    def require_values(self, spec: Spec, robot_key: str, name: str, why: str) -> None:
+        """Error unless robot `spec[robot_key]`'s description gives parameter `name` a value (not only
+        `count:`), for a plugin that reads the nominal value, `why` (e.g. 'to guess the first lengths')."""
+        param = self.robots[spec[robot_key]].parameters.get(name)
+        if param is not None and not param.known:
+            raise spec.error(robot_key, f"{spec.type} needs the nominal value of parameter {name!r} of robot "
+                             f"{spec[robot_key]!r} {why}; give it `values:` in the robot description")
+
     def require_columns(self, spec: Spec, stream_key: str, columns: tuple[str, ...]) -> None:
         have = self.stream_columns[spec[stream_key]]
         missing = [c for c in columns if c not in have]

@@ -17,7 +17,10 @@ from .data.files import read_tum
 from .data.stream import Stream, pose_array_from, pose_stream
 from .errors import DataError
 from .eval.parameters import parameter_errors
-from .eval.trajectory import position_consistency, trajectory_errors
+from .eval.consistency import sigma_check
+from .eval.notes import evaluation_notes
+from .eval.timebase import check_truth_clock
+from .eval.trajectory import matched_positions, position_consistency, trajectory_errors
 from .graph.builder import BuildContext, Problem
 from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
@@ -59,6 +62,16 @@ class RunResult:
     timings: dict[str, float]
     streams: dict[str, Stream] = field(default_factory=dict)  # the data the graph was built from
 
+    @property
+    def notes(self) -> list[str]:
+        """What the summary and report.json `notes` list: data read with corrections (the data streams'
+        notes reach problem.notes in build_problem), data not used, and the evaluation's warnings."""
+        notes = [*self.problem.notes, *(n for s in self.truth.trajectories.values() for n in s.notes),
+                 *evaluation_notes(self.evaluation)]
+        if self.config.output.get("state_covariances") and not self.config.solver.get("marginals", True):
+            notes.append("output.state_covariances: no covariances written, solver.marginals is false")
+        return notes
+
 
 def _stage(progress: Progress | None, text: str) -> None:
     if progress is not None:
@@ -82,6 +95,10 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
         truth.trajectories[robot] = read_tum(config.resolve(file), f"truth:{robot}")
     if "calibration" in config.truth:
         truth.calibration.update(calibration_entries(load_yaml(config.resolve(config.truth["calibration"]))))
+    for robot, ref in truth.trajectories.items():
+        states = robot in config.robots and config.robots[robot].states
+        if states:
+            check_truth_clock(ref, robot, streams[states["stream"]], states.get("every", 1))
     return streams, truth
 
 
@@ -89,12 +106,15 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
     """Every factor entry builds its factors, then initializers run in config order."""
     reg = registry()
     ctx = BuildContext(config, streams)
+    ctx.notes.extend(note for stream in streams.values() for note in stream.notes)
     for spec in config.factors:
         _stage(progress, f"building {spec.label}")
         reg.get("factor_types", spec.type)().build(ctx, spec)
     for spec in config.initializers:
         _stage(progress, f"initializing: {spec.label}")
+        ctx.current_initializer = spec.label
         reg.get("initializers", spec.type)().initialize(ctx, spec)
+    ctx.require_values()
     for spec in config.factors:
         _stage(progress, f"diagnosing {spec.label}")
         reg.get("factor_types", spec.type)().diagnose(ctx, spec)
@@ -104,6 +124,8 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
 def _marginal_keys(problem: Problem, with_states: bool) -> set[int]:
     keys = set()
     for k in problem.initial.keys():
+        if k in problem.fixed_keys:
+            continue  # held at its value: no uncertainty to report
         fam = problem.keys.decode(k)[0]
         if fam.kind != STATE or (with_states and fam.name == "pose"):
             keys.add(k)
@@ -158,20 +180,20 @@ def _parameters(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarra
 
 
 def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth: Truth) -> dict:
+    """Per robot with truth: states, matched_poses, ATE/RPE and, with sigmas, the shares inside 1/2/3 sigma
+    and their verdict; parameter errors against the truth calibration."""
     ev: dict[str, Any] = {}
     align = config.truth.get("align", "none")
     for robot, ref in truth.trajectories.items():
         if robot not in trajectories:
             continue
-        err = trajectory_errors(trajectories[robot], ref, align)
-        if robot in position_sigma:
-            from .data.association import nearest
-            a = nearest(ref.t, trajectories[robot].t, 0.01)
-            sigma = position_sigma[robot][a.row]
-            n = sigma.shape[1]  # x, y for planar (pose2) robots
-            est_pos = trajectories[robot].pose_array()[a.row, :n]
-            true_pos = ref.pose_array()[a.state, :n]
-            err["consistency_percent"] = position_consistency(est_pos, true_pos, sigma)
+        m = matched_positions(trajectories[robot], ref, position_sigma.get(robot))
+        err: dict[str, Any] = {"states": len(trajectories[robot]), "matched_poses": len(m.t)}
+        if len(m.t):
+            err.update(trajectory_errors(trajectories[robot], ref, align))
+        if len(m.t) and m.sigma is not None:
+            err["consistency_percent"] = position_consistency(m.estimate, m.truth, m.sigma)
+            err["consistency_check"] = sigma_check(m.error / m.sigma, err["consistency_percent"])
         ev.setdefault("trajectories", {})[robot] = err
     if truth.calibration:
         ev["parameters"] = parameter_errors(parameters, truth.calibration)
@@ -224,7 +246,8 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     problem = build_problem(config, streams, progress)
     timings["build_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    marginal_keys = _marginal_keys(problem, with_states=bool(truth.trajectories))
+    marginal_keys = _marginal_keys(problem, with_states=bool(truth.trajectories)
+                                   or config.output.get("state_covariances", False))
     if config.refined_factors:
         problem, solution = _solve_refined(config, streams, problem, marginal_keys, progress)
     else:

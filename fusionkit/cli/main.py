@@ -92,6 +92,10 @@ def cmd_validate(args) -> int:
     for label, n in counts.items():
         print(f"  {label}: {n} factors")
     print(f"  {problem.initial.size()} variables, {len(problem.records)} factors; every variable is constrained")
+    for name, initializer in problem.value_source.items():
+        print(f"  {name}: no value in the description; initial value from {initializer}")
+    for key in sorted(problem.fixed_keys):
+        print(f"  {problem.keys.name_of(key)}: fixed (held at its value, not estimated)")
     for line in diagnostic_lines(problem.diagnostics):
         print(line)
     for note in problem.notes:

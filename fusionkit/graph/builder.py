@@ -20,6 +20,7 @@ from .noise import gaussian, with_kernel
 from .variables import POSE2, POSE3, VarType
 
 STATIC_TIME = float("-inf")
+FIXED_SIGMA = 1e-9  # prior sigma (per tangent axis, SI units) that holds a `fixed: true` parameter
 
 
 @dataclass
@@ -58,6 +59,8 @@ class Problem:
     notes: list[str] = field(default_factory=list)
     diagnostics: dict[str, dict] = field(default_factory=dict)
     plots: dict[str, Callable[[Path], None]] = field(default_factory=dict)
+    fixed_keys: set[int] = field(default_factory=set)  # `fixed: true` parameters: held, not estimated
+    value_source: dict[str, str] = field(default_factory=dict)  # value-less parameter -> its initializer
     _graph: gtsam.NonlinearFactorGraph | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
@@ -83,6 +86,10 @@ class BuildContext:
         self.diagnostics: dict[str, dict] = {}
         self.plots: dict[str, Callable[[Path], None]] = {}
         self.states: dict[str, StateSet] = {}
+        self.fixed_keys: set[int] = set()
+        self.awaiting_value: dict[int, list[str]] = {}  # [robot, parameter] the description gives no value
+        self.value_source: dict[str, str] = {}  # such a parameter's name -> the initializer that set it
+        self.current_initializer = ""
         for name, setup in config.robots.items():
             if setup.states:
                 clock = streams[setup.states["stream"]]
@@ -163,12 +170,25 @@ class BuildContext:
         return key
 
     def _prior(self, param: Parameter, i: int, key: int, label: str, time: float) -> None:
-        if param.sigma is not None:
+        """The description's prior; a fixed parameter is held by a prior of FIXED_SIGMA (a hard
+        constraint model would break the QR marginals); one without a value waits for an initializer."""
+        if param.fixed:
+            self.fixed_keys.add(key)
+            noise = gaussian([FIXED_SIGMA] * param.vartype.dim)
+            self.add_record(param.vartype.prior(key, param.values[i], noise), label.replace("prior:", "fixed:"), time)
+        elif not param.known:
+            self.awaiting_value[key] = label.removeprefix("prior:").split("/", 1)
+        elif param.sigma is not None:
             self.add_record(param.vartype.prior(key, param.values[i], gaussian(param.sigma[i])), label, time)
 
     def set_initial(self, key: int, value: Any) -> None:
+        """Initial value of a variable (an initializer's estimate); a fixed parameter keeps its value."""
+        if key in self.fixed_keys:
+            return
         if self.initial.exists(key):
             self.initial.update(key, value)
+            if self.awaiting_value.pop(key, None) is not None:
+                self.value_source[self.keys.name_of(key)] = self.current_initializer
         else:
             raise KeyError(f"{self.keys.name_of(key)} is not a variable of the graph")
 
@@ -200,7 +220,15 @@ class BuildContext:
 
     def problem(self) -> Problem:
         return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
-                       self.notes + self._unused_notes(), self.diagnostics, self.plots)
+                       self.notes + self._unused_notes(), self.diagnostics, self.plots, self.fixed_keys,
+                       self.value_source)
+
+    def require_values(self) -> None:
+        """After the initializers: every parameter the description gives no value must have one now."""
+        for key, (robot, name) in self.awaiting_value.items():
+            raise self.robot(robot).error(("parameters", name), f"robot {robot!r}: parameter {name} has no value "
+                                          f"and no initializer set {self.keys.name_of(key)}; give `value:`/"
+                                          "`values:` in the description, or add an initializer that estimates it")
 
     def _unused_notes(self) -> list[str]:
         """What the config declares but no factor uses: a robot's states, a description parameter."""

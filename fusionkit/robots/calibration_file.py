@@ -4,7 +4,13 @@
     robots:
       cam:
         vo_scale: {type: scalar, value: 2.0, sigma: 0.01}
-        pulley:   {type: point3, values: [[...], ...], sigma: [[...], ...]}
+        pulley:   {type: point3, values: [[...], ...], sigma: [[...], ...], components: [x, y, z], ...}
+        marker:   {type: pose3, value: [x, y, z, qx, qy, qz, qw], sigma: [rx, ry, rz, tx, ty, tz],
+                   components: [x, y, z, qx, qy, qz, qw], sigma_components: [rx, ry, rz, tx, ty, tz]}
+
+Sigmas are per tangent axis in GTSAM's order: for poses and rotations rx ry rz is the rotation about
+the body axes (rad) and tx ty tz the translation along them (m). `components` and `sigma_components`
+name the entries of the value and sigma lists; when present on reading they must be these names.
 """
 
 from __future__ import annotations
@@ -15,6 +21,32 @@ import numpy as np
 
 from ..config.yamlio import Document
 from .description import Parameter, RobotDescription, _sigma_array
+
+# type -> (names of a value's list entries, names of a sigma's entries); other types (scalar, vectorN)
+# have no named components
+COMPONENTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "pose3": (("x", "y", "z", "qx", "qy", "qz", "qw"), ("rx", "ry", "rz", "tx", "ty", "tz")),
+    "pose2": (("x", "y", "theta"), ("tx", "ty", "rz")),
+    "rot3": (("roll", "pitch", "yaw"), ("rx", "ry", "rz")),
+    "point3": (("x", "y", "z"), ("x", "y", "z")),
+    "point2": (("x", "y"), ("x", "y")),
+    "velocity3": (("vx", "vy", "vz"), ("vx", "vy", "vz")),
+    "imu_bias": (("ax", "ay", "az", "gx", "gy", "gz"), ("ax", "ay", "az", "gx", "gy", "gz")),
+}
+# what the sigma names of a type with rotation mean (printed beside them in the summary)
+SIGMA_AXES = {"pose3": "rad about, m along the body axes", "pose2": "m along, rad about the body axes",
+              "rot3": "rad about the body axes"}
+
+
+def _check_components(doc: Document, path: tuple, entry: dict) -> None:
+    """A located error when `components` / `sigma_components` name other entries than fusionkit's order."""
+    kind = entry.get("type")
+    if not isinstance(kind, str) or kind not in COMPONENTS:
+        return
+    for key, what, expected in zip(("components", "sigma_components"), ("value", "sigma"), COMPONENTS[kind]):
+        if key in entry and entry[key] != list(expected):
+            raise doc.error(path + (key,), f"got {entry[key]}; expected [{', '.join(expected)}], the order of a "
+                            f"{kind} {what}: reorder the numbers and their names together")
 
 
 def calibration_entries(doc: Document) -> dict[str, dict[str, Any]]:
@@ -29,6 +61,7 @@ def calibration_entries(doc: Document) -> dict[str, dict[str, Any]]:
         for name, entry in params.items():
             if not isinstance(entry, dict) or not ({"value", "values"} & set(entry)):
                 raise doc.error(("robots", robot, name), "expected {value: ..., sigma: ...} or {values: [...]}")
+            _check_components(doc, ("robots", robot, name), entry)
     return data["robots"]
 
 
@@ -52,24 +85,29 @@ def apply_calibration(desc: RobotDescription, entries: dict[str, Any], doc: Docu
             sigma = _sigma_array(entry.get("sigma"), param.count, param.vartype.dim)
         except (ValueError, TypeError) as exc:
             raise doc.error(path, str(exc)) from None
-        param.values = values
+        param.values, param.known = values, True
         if sigma is not None:
-            param.sigma = sigma
+            param.sigma, param.fixed = sigma, False
+        if entry.get("fixed"):
+            param.sigma, param.fixed = None, True
 
 
 def calibration_entry(param: Parameter, values: list[Any], sigmas: np.ndarray | None) -> dict[str, Any]:
-    """One YAML entry: {type, value|values, sigma} with sigma per tangent axis."""
+    """One YAML entry: {type, value|values, sigma} with sigma per tangent axis; types with named
+    components (COMPONENTS) name them in `components` after the value and `sigma_components` after the sigma."""
+    names = COMPONENTS.get(param.vartype.name)
     out: dict[str, Any] = {"type": param.vartype.name}
     listed = [param.vartype.to_list(v) for v in values]
-    sig = None if sigmas is None else [[float(x) for x in row] for row in np.atleast_2d(sigmas)]
-    if param.indexed:
-        out["values"] = listed
-        if sig is not None:
-            out["sigma"] = sig
-    else:
-        out["value"] = listed[0]
-        if sig is not None:
-            out["sigma"] = sig[0][0] if len(sig[0]) == 1 else sig[0]
+    sig = None if sigmas is None or param.fixed else [[float(x) for x in row] for row in np.atleast_2d(sigmas)]
+    out["values" if param.indexed else "value"] = listed if param.indexed else listed[0]
+    if names:
+        out["components"] = list(names[0])
+    if sig is not None:
+        out["sigma"] = sig if param.indexed else (sig[0][0] if len(sig[0]) == 1 else sig[0])
+        if names:
+            out["sigma_components"] = list(names[1])
+    if param.fixed:
+        out["fixed"] = True
     if param.unit:
         out["unit"] = param.unit
     return out

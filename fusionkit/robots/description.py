@@ -56,13 +56,14 @@ DESCRIPTION_SCHEMA = {
                     "type": {"type": "string"},
                     "value": {},
                     "values": {"type": "array", "minItems": 1},
+                    "count": {"type": "integer", "minimum": 1},
                     "sigma": {"type": ["number", "array", "null"]},
+                    "fixed": {"type": "boolean"},
                     "time_varying": {"type": "boolean"},
                     "unit": {"type": "string"},
                     "summary": {"type": "string"},
                 },
                 "required": ["type"],
-                "oneOf": [{"required": ["value"]}, {"required": ["values"]}],
                 "additionalProperties": False,
             },
         },
@@ -73,7 +74,10 @@ DESCRIPTION_SCHEMA = {
 
 @dataclass
 class Parameter:
-    """A calibration parameter: nominal value(s) and the 1-sigma of its prior (None: no prior)."""
+    """A calibration parameter: nominal value(s) and the 1-sigma of its prior (None: no prior).
+
+    `fixed`: held at its value (not estimated). `known` is False when the description gives no
+    value: `values` then holds placeholders (zeros) until an initializer sets the variables."""
 
     name: str
     vartype: VarType
@@ -82,6 +86,8 @@ class Parameter:
     indexed: bool
     time_varying: bool = False
     unit: str = ""
+    fixed: bool = False
+    known: bool = True
 
     @property
     def count(self) -> int:
@@ -111,6 +117,9 @@ class RobotDescription:
         return self.doc.error(path, message)
 
 
+FIXED_HINT = "to hold a parameter at its value, write `fixed: true` instead of a sigma"
+
+
 def _sigma_array(raw: Any, count: int, dim: int) -> np.ndarray | None:
     if raw is None:
         return None
@@ -124,7 +133,7 @@ def _sigma_array(raw: Any, count: int, dim: int) -> np.ndarray | None:
     if a.shape != (count, dim):
         raise ValueError(f"expected a number, {dim} numbers, or {count} lists of {dim} numbers")
     if np.any(~np.isfinite(a)) or np.any(a <= 0):
-        raise ValueError("sigmas must be positive and finite")
+        raise ValueError(f"sigmas must be positive and finite ({FIXED_HINT})")
     return a
 
 
@@ -135,21 +144,36 @@ def _parameter(doc: Document, name: str, raw: dict) -> Parameter:
     except ValueError:
         raise doc.error(path + ("type",), f"unknown variable type {raw['type']!r}; accepted: "
                         f"{', '.join(VARTYPE_NAMES)}") from None
-    indexed = "values" in raw
-    raw_values = raw["values"] if indexed else [raw["value"]]
+    given = [k for k in ("value", "values", "count") if k in raw]
+    if len(given) > 1:
+        raise doc.error(path + (given[1],), f"give one of value, values or count (not {' and '.join(given)})")
+    known = "count" not in raw and given != []
+    if not known:  # no value: an initializer must supply it; no prior, nothing to hold fixed
+        for key in ("sigma", "fixed", "time_varying"):
+            if raw.get(key) not in (None, False):
+                raise doc.error(path + (key,), f"`{key}` needs the parameter's value: give `value:` (or "
+                                "`values:`), or drop it and let an initializer estimate the parameter")
+    indexed = "values" in raw or "count" in raw
+    raw_values = raw["values"] if "values" in raw else [raw["value"]] if "value" in raw else None
     values = []
-    for i, v in enumerate(raw_values):
+    for i, v in enumerate(raw_values or []):
         try:
             values.append(vartype.from_list(v))
         except (ValueError, TypeError) as exc:
             where = path + (("values", i) if indexed else ("value",))
             raise doc.error(where, f"{exc} for a {vartype.name}") from None
+    if raw_values is None:
+        values = [vartype.zero() for _ in range(raw.get("count", 1))]
+    fixed = bool(raw.get("fixed", False))
+    if fixed and (raw.get("sigma") is not None or raw.get("time_varying")):
+        key = "sigma" if raw.get("sigma") is not None else "time_varying"
+        raise doc.error(path + (key,), f"a fixed parameter is held at its value: it has no {key}")
     try:
         sigma = _sigma_array(raw.get("sigma"), len(values), vartype.dim)
     except ValueError as exc:
         raise doc.error(path + ("sigma",), str(exc)) from None
     return Parameter(name, vartype, values, sigma, indexed, bool(raw.get("time_varying", False)),
-                     raw.get("unit", ""))
+                     raw.get("unit", ""), fixed, known)
 
 
 def description_from_document(doc: Document) -> RobotDescription:

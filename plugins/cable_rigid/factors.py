@@ -1,5 +1,5 @@
-"""Rigid-cable factor types (spec cable_rigid.md): cable length with encoder offset (eq. 4.1),
-elastic cable with measured tension (eq. 4.2), and the pseudo-measurements on pulley geometry."""
+"""Rigid-cable factor types (docs/models/cable_rigid.md): cable length with encoder offset (thesis
+eq. 4.1), elastic cable with measured tension (thesis eq. 4.2), and the pseudo-measurements on pulley geometry."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ def attachment_offset(b: np.ndarray) -> gtsam.Pose3:
 
 class CableLength(FactorType):
     name = "cable.length"
-    summary = "rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (eq. 4.1): native GTSAM range+bias factor"
+    summary = "rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (thesis eq. 4.1): native GTSAM range+bias factor"
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",
@@ -77,7 +77,7 @@ class CableLength(FactorType):
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
     def diagnose(self, ctx, spec: Spec) -> None:
-        """Observability of each cable's pulley and offset from this trajectory (eq. 4.6/4.7)."""
+        """Observability of each cable's pulley and offset from this trajectory (thesis eqs. 4.6-4.7)."""
         from .observability import diagnose_cable_lengths
         diagnose_cable_lengths(ctx, spec)
 
@@ -106,7 +106,7 @@ def elastic_cable_factor(pose: int, pulley: int, offset: int, b, stretch: float,
 
 class ElasticCableLength(FactorType):
     name = "cable.elastic_length"
-    summary = "elastic cable with measured tension T_i: z_i = (1 - T_i/EA) l*_i + l0_i (eq. 4.2)"
+    summary = "elastic cable with measured tension T_i: z_i = (1 - T_i/EA) l*_i + l0_i (thesis eq. 4.2)"
     robot_fields = ("robot",)
     stream_fields = ("stream", "tension_stream")
     schema = {"type": "object",
@@ -124,6 +124,7 @@ class ElasticCableLength(FactorType):
         check_cables(spec, "cables", n)
         if "stiffness_EA" not in scope.robots[spec["robot"]].extra["cables"]:
             raise spec.error("robot", f"robot {spec['robot']!r} has no cables.stiffness_EA; elastic cables need it")
+        scope.require_values(spec, "robot", "offset", "to scale the tension noise by the cable length")
         scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
         tcols = tuple(spec.get("tension_columns") or [f"T{i}" for i in range(n)])
         scope.require_columns(spec, "tension_stream", tcols)

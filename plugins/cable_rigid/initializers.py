@@ -1,5 +1,5 @@
 """Initializers of the cable plugin: `cable.monte_carlo`, the Monte-Carlo self-calibration of the
-pulleys, encoder offsets and VO scale (spec cable_rigid.md, "Initialization"; the method is in
+pulleys, encoder offsets and VO scale (docs/models/cable_rigid.md#monte-carlo-initialization; the method is in
 monte_carlo.py), and `cable.multilateration`, pulleys and offsets when the poses are known
 (motion capture): `{type: cable.multilateration, robot: cdpr, lengths: lengths}`.
 
@@ -86,6 +86,7 @@ class MonteCarloCalibration(Initializer):
             raise spec.error("columns", f"{len(spec['columns'])} columns named; the robot has {n} cables")
         scope.require_columns(spec, "lengths", tuple(length_columns(spec, n)))
         scope.require_parameter(spec, "robot", "scale", "scalar")
+        scope.require_values(spec, "robot", "offset", "to guess the first cable lengths")
         lo, hi = np.asarray(spec["region"]["min"]), np.asarray(spec["region"]["max"])
         if np.any(lo >= hi):
             axis = AXIS_NAMES[int(np.argmax(lo >= hi))]
