@@ -15,7 +15,7 @@ from .config.loader import RunConfig
 from .config.yamlio import load_yaml
 from .data.files import read_tum
 from .data.stream import Stream, pose_array_from, pose_stream
-from .errors import DataError
+from .errors import DataError, SolverError
 from .eval.parameters import parameter_errors
 from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
@@ -221,7 +221,7 @@ def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Probl
     second). Iterations and seconds count both solves; costs, checks and covariances are the
     second's; the returned problem keeps the initializers' values as its initial ones."""
     settings = {k: v for k, v in config.solver.items() if k != "refine"}
-    first = solve(problem, {**settings, "marginals": False}, set(), progress)
+    first = solve(problem, {**settings, "marginals": False}, set(), progress)  # judged by the second solve
     refined = build_problem(dataclasses.replace(config, factors=config.refined_factors), streams, progress)
     second = solve(dataclasses.replace(refined, initial=first.values), settings, marginal_keys, progress)
     second.iterations += first.iterations
@@ -229,11 +229,16 @@ def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Probl
     return refined, second
 
 
-def estimate(config: RunConfig, progress: Progress | None = None) -> RunResult:
+def estimate(config: RunConfig, progress: Progress | None = None, keep_rejected: bool = False) -> RunResult:
     """Run everything short of writing files (with one BLAS thread, see fusionkit.threads);
-    `progress` hears of each stage and solver iteration."""
+    `progress` hears of each stage and solver iteration. A solution the chi-square gate refuses
+    raises SolverError, or with `keep_rejected` is returned complete with `solution.rejection` set
+    (to write it out for inspection)."""
     with one_blas_thread():
-        return _estimate(config, progress)
+        result = _estimate(config, progress)
+    if result.solution.rejection and not keep_rejected:
+        raise SolverError(result.solution.rejection)
+    return result
 
 
 def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:

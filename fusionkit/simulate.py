@@ -1,5 +1,6 @@
 """`fusionkit simulate`: write a simulator's dataset in the documented formats, its truth, the
-robot descriptions and a runnable config (all into one folder, atomically)."""
+robot descriptions and a runnable config when the simulator provides them (all into one folder,
+atomically; no empty subfolder)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ import yaml
 
 from .config.loader import RunConfig, load_config
 from .config.overrides import apply_override
-from .config.schema import validate_against
 from .config.yamlio import Document
 from .data.files import write_csv_stream, write_tum
 from .errors import ConfigError
@@ -30,8 +30,7 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
     params: dict = {}
     for assignment in overrides:
         apply_override(params, assignment)
-    validate_against(Document(params, Path(f"<simulate {scenario}>")), cls.schema, params)
-    params = {**cls.defaults, **params}
+    params = cls.resolve(params, Document(params, Path(f"<simulate {scenario}>")))
     sim = cls()
     data = sim.simulate(params, np.random.default_rng(seed))
     written: list[Path] = []
@@ -58,8 +57,12 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
             (tmp / "robots" / f"{robot}.yaml").write_text(yaml.safe_dump(desc, sort_keys=False))
         config = sim.config(params)
         if config:
-            config = {"name": f"{scenario.replace('.', '_')}_sim", **config, "sources": sources, "truth": truth}
+            config = {"name": f"{scenario.replace('.', '_')}_sim", **config, "sources": sources,
+                      "truth": {**config.get("truth", {}), **truth}}  # the simulator's settings (align) kept
             (tmp / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+        for sub in ("data", "truth", "robots"):
+            if not any((tmp / sub).iterdir()):
+                (tmp / sub).rmdir()
         written = [p.relative_to(tmp) for p in tmp.rglob("*") if p.is_file()]
     return [out / p for p in written]
 
@@ -72,7 +75,7 @@ def simulated_config(scenario: str, params: dict, seed: int = 0,
     as long as the context; `edit(config)` may change the config dict first. For experiments and
     benchmarks that run many simulated datasets without writing them."""
     sim = registry().get("simulators", scenario)()
-    full = {**sim.defaults, **params}
+    full = sim.resolve(params, Document(params, Path(f"<simulate {scenario}>")))
     config = {"name": f"{scenario.replace('.', '_')}_{seed}", **sim.config(full),
               "sources": [{"type": "simulate", "scenario": scenario, "seed": seed, "params": params}]}
     if edit:

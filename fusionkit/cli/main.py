@@ -12,7 +12,7 @@ from pathlib import Path
 from .. import __version__
 from ..errors import FusionkitError, SolverError
 
-EXIT_ERROR, EXIT_INTERNAL = 2, 3
+EXIT_ERROR, EXIT_INTERNAL, EXIT_REJECTED = 2, 3, 4
 
 
 def _progress(args):
@@ -47,7 +47,7 @@ def cmd_run(args) -> int:
     inputs = config.input_paths()
     check_output_folder(out, inputs)  # before any work: refuse a folder fusionkit may not replace
     with _status(_progress(args)) as progress:
-        result = estimate(config, progress)
+        result = estimate(config, progress, keep_rejected=True)
         if progress:
             progress.stage("writing outputs")
         try:
@@ -57,6 +57,10 @@ def cmd_run(args) -> int:
             raise _write_error(out, exc) from None
     print(summary_text(result))
     print(f"  outputs: {out}/ (report.json, calibration.yaml, trajectories/, plots/)")
+    if result.solution.rejection:
+        print(f"fusionkit: error: {args.config}: {result.solution.rejection}; the outputs were written with status: "
+              f"rejected to inspect ({out}/report.json)", file=sys.stderr)
+        return EXIT_REJECTED
     return 0
 
 

@@ -71,6 +71,7 @@ CONFIG_SCHEMA = {
                 "relinearize_threshold": POSITIVE,
                 "max_cost_ratio": POSITIVE,
                 "marginals": {"type": "boolean"},
+                "a_posteriori_sigmas": {"type": "boolean"},
                 "refine": {"type": "object", "additionalProperties": {"type": "object"}},
             },
             "additionalProperties": False,
@@ -86,7 +87,7 @@ CONFIG_SCHEMA = {
         },
         "output": {
             "type": "object",
-            "properties": {"plots": {"type": "boolean"}},
+            "properties": {"plots": {"type": "boolean"}, "state_covariances": {"type": "boolean"}},
             "additionalProperties": False,
         },
     },

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -25,6 +26,42 @@ def _read_text(path: Path) -> str:
             from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
+
+
+# |norm - 1| above this is not rounding: quaternions printed with 4 decimals are within 1e-4 of unit
+# norm, so a larger deviation means a scaled or corrupted rotation, worth a note after renormalizing
+QUATERNION_NORM_TOLERANCE = 1e-3
+# Unix time in seconds stays below 1e10 until the year 2286; a median step above a day is no robot
+# stream, while nanosecond stamps of any stream slower than 10 kHz step by 1e5 or more
+MAX_SECONDS = 1e11
+MAX_MEDIAN_STEP = 1e5
+_UNITS = ((1e17, "nanoseconds", "1e9"), (1e14, "microseconds", "1e6"), (MAX_SECONDS, "milliseconds", "1e3"))
+
+
+def check_seconds(origin: str, t: np.ndarray) -> None:
+    """Refuse timestamps that cannot be seconds (see MAX_SECONDS, MAX_MEDIAN_STEP), naming the likely unit."""
+    largest = float(np.max(np.abs(t)))
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if largest <= MAX_SECONDS and step <= MAX_MEDIAN_STEP:
+        return
+    unit, factor = next(((u, f) for limit, u, f in _UNITS if largest > limit), ("nanoseconds", "1e9"))
+    raise DataError(f"{origin}: timestamps look like {unit} (t = {t[0]:.10g} .. {t[-1]:.10g}, median step "
+                    f"{step:.3g}); fusionkit expects seconds: divide t by {factor}")
+
+
+def unit_quaternions(q: np.ndarray, origin: str, locate: Callable[[int], str]) -> str | None:
+    """Scale to unit norm, in place, the rows of q (N x 4, qx qy qz qw) whose norm is off 1 by more than
+    QUATERNION_NORM_TOLERANCE (the others are left as read); a note counting them (`locate(i)` words
+    where row i is), or None."""
+    norms = np.linalg.norm(q, axis=1)
+    off = np.abs(norms - 1.0)
+    bad = off > QUATERNION_NORM_TOLERANCE
+    if not bad.any():
+        return None
+    q[bad] /= norms[bad, None]
+    return (f"{origin}: {int(bad.sum())} of {len(q)} quaternions had a norm off 1 by more than "
+            f"{QUATERNION_NORM_TOLERANCE:g} (largest {off.max():.3g}, first at {locate(int(np.argmax(bad)))}); "
+            "renormalized")
 
 
 def _is_data(row: list[str]) -> bool:
@@ -86,7 +123,15 @@ def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> St
             j = next(j for j, c in enumerate(row) if not _is_float(c))
             raise DataError(f"{path}:{line}: column {header[j]!r} has {row[j].strip()!r}; expected a number") from None
     check_samples(data[:, 0], data[:, 1:], str(path), lines=np.asarray(lines[1:]))
-    return Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
+    check_seconds(f"{path}:{lines[1]}", data[:, 0])
+    stream = Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
+    if stream.is_pose:
+        q = [stream.columns.index(c) for c in POSE_COLUMNS[3:]]
+        quats = stream.values[:, q]
+        note = unit_quaternions(quats, str(path), lambda i: f"line {lines[i + 1]}")
+        stream.values[:, q] = quats
+        stream.notes += [note] if note else []
+    return stream
 
 
 def write_csv_stream(path: Path, stream: Stream) -> None:
@@ -133,8 +178,9 @@ def read_tum(path: Path, name: str) -> Stream:
         raise DataError(f"{path}:{lines[bad]}: {int(np.sum(norms < 1e-9))} row(s) have a zero quaternion (first "
                         f"at line {lines[bad]}); expected a unit quaternion qx qy qz qw")
     check_samples(a[:, 0], a[:, 1:], str(path), lines=np.asarray(lines))
-    a[:, 4:] /= norms[:, None]
-    return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path))
+    check_seconds(f"{path}:{lines[0]}", a[:, 0])
+    note = unit_quaternions(a[:, 4:], str(path), lambda i: f"line {lines[i]}")
+    return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path), [note] if note else [])
 
 
 def write_tum(path: Path, stream: Stream) -> None:

@@ -12,6 +12,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ..errors import DataError
+from .files import unit_quaternions
 from .stream import POSE_COLUMNS, Stream
 
 TWIST_COLUMNS = ("vx", "vy", "vz", "wx", "wy", "wz")
@@ -155,9 +156,12 @@ def _read_topic(reader, path: Path, topic: str, name: str) -> Stream:
     t, values = t[order], values[order]
     _reject(origin, t, np.r_[False, np.diff(t) <= 0], "repeat an earlier header stamp")
     _reject(origin, t, ~np.all(np.isfinite(values), axis=1), "contain NaN or infinite values")
+    notes = []
     if columns[:7] == POSE_COLUMNS:
         _reject(origin, t, np.linalg.norm(values[:, 3:7], axis=1) < 1e-9, "have a zero quaternion")
-    return Stream(name, t, columns, values, origin)
+        note = unit_quaternions(values[:, 3:7], origin, lambda i: f"t = {t[i]:.6f} s")
+        notes += [note] if note else []
+    return Stream(name, t, columns, values, origin, notes)
 
 
 def read_bag(path: Path, topics: dict[str, str]) -> dict[str, Stream]:

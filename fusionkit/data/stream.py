@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -22,6 +22,7 @@ class Stream:
     columns: tuple[str, ...]
     values: np.ndarray
     origin: str = ""
+    notes: list[str] = field(default_factory=list, compare=False)  # what reading it corrected, for the report
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, dtype=float).reshape(-1)

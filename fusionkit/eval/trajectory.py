@@ -3,10 +3,37 @@
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..data.association import nearest
 from ..data.stream import Stream
+
+MATCH_TOLERANCE = 0.01  # s: a truth pose is compared with the state nearest in time, when at most this far
+
+
+@dataclass
+class MatchedPositions:
+    """Estimated and true positions (m, world axes) at the states that have a truth pose, in time order."""
+
+    t: np.ndarray  # (n,) state times (s)
+    estimate: np.ndarray  # (n, d): d = 3, or 2 (x, y) for planar robots
+    truth: np.ndarray  # (n, d)
+    sigma: np.ndarray | None  # (n, d) 1-sigma of the estimate, when computed
+
+    @property
+    def error(self) -> np.ndarray:
+        return self.estimate - self.truth
+
+
+def matched_positions(estimate: Stream, truth: Stream, sigma: np.ndarray | None = None) -> MatchedPositions:
+    """Pair each truth pose with the nearest state within MATCH_TOLERANCE; `sigma` (one row per state
+    of `estimate`) sets the axes compared: its columns (x, y for planar robots), else x, y, z."""
+    a = nearest(truth.t, estimate.t, MATCH_TOLERANCE)
+    d = 3 if sigma is None else sigma.shape[1]
+    return MatchedPositions(estimate.t[a.row], estimate.pose_array()[a.row, :d], truth.pose_array()[a.state, :d],
+                            None if sigma is None else sigma[a.row])
 
 
 def _evo(stream: Stream):
@@ -17,7 +44,7 @@ def _evo(stream: Stream):
 
 
 def trajectory_errors(estimate: Stream, truth: Stream, align: str = "none",
-                      max_time_diff: float = 0.01) -> dict:
+                      max_time_diff: float = MATCH_TOLERANCE) -> dict:
     """ATE (translation, m) and RPE per frame (translation m, rotation deg) after associating stamps."""
     from evo.core import metrics, sync
     ref, est = sync.associate_trajectories(_evo(truth), _evo(estimate), max_diff=max_time_diff)

@@ -1,4 +1,5 @@
-"""report.json, calibration.yaml and trajectories/<robot>.tum from a RunResult."""
+"""report.json, calibration.yaml, trajectories/<robot>.tum and, when asked, covariances/<robot>.csv
+from a RunResult."""
 
 from __future__ import annotations
 
@@ -83,14 +84,28 @@ def report_document(result: RunResult) -> dict:
         "config": str(result.config.doc.file),
         "problem": {"factors": len(problem.records), "variables": int(problem.initial.size()),
                     "states": {r: len(s) for r, s in problem.states.items()}, "factors_by_entry": counts},
+        "status": solver["status"],  # "rejected": the chi-square gate refused the solution (solver.rejection)
         "solver": solver,
         "final_cost": solver["final_cost"],
         "timings_s": result.timings,
         "parameters": params,
         "evaluation": result.evaluation,
         "diagnostics": problem.diagnostics,
-        "notes": problem.notes,
+        "notes": result.notes,
     }
+
+
+class _Dumper(yaml.SafeDumper):
+    """Lists of numbers or names on one line (`value: [x, y, z]`), everything else in block style."""
+
+
+_Dumper.add_representer(list, lambda dumper, data: dumper.represent_sequence(
+    "tag:yaml.org,2002:seq", data, flow_style=all(isinstance(x, (int, float, str)) for x in data)))
+
+
+def calibration_text(doc: dict) -> str:
+    """calibration.yaml's text: each list of numbers (a value, a sigma) or names on one line."""
+    return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, width=4096)
 
 
 def _json_default(o: Any):
@@ -105,9 +120,12 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
     """Write every output file into `out` (a fresh folder)."""
     (out / "trajectories").mkdir()
     (out / "report.json").write_text(json.dumps(report_document(result), indent=2, default=_json_default))
-    (out / "calibration.yaml").write_text(yaml.safe_dump(calibration_document(result), sort_keys=False))
+    (out / "calibration.yaml").write_text(calibration_text(calibration_document(result)))
     for robot, traj in result.trajectories.items():
         write_tum(out / "trajectories" / f"{robot}.tum", traj)
+    if result.config.output.get("state_covariances"):
+        from .covariances import write_state_covariances
+        write_state_covariances(result, out / "covariances")
     if plots:
         from .plots import write_plots
         (out / "plots").mkdir()

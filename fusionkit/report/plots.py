@@ -1,5 +1,6 @@
-"""plots/trajectory.png (estimate vs truth, top view and height) and plots/residuals.png
-(whitened residual norm per factor entry: ~1 means the sigmas fit the data)."""
+"""plots/trajectory.png (estimate vs truth, top view and height), plots/error_vs_time_<robot>.png
+(position error against truth per axis with the +-3 sigma band) and plots/residuals.png (whitened
+residual norm per factor entry: ~1 means the sigmas fit the data)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..eval.trajectory import matched_positions
 from ..pipeline import RunResult
+
+TRUTH_STYLE = {"color": "black", "linestyle": "--", "linewidth": 1.0}  # every estimate has a colour of its own
 
 
 def _pyplot():
@@ -27,11 +31,33 @@ def plot_trajectories(result: RunResult, file: Path) -> None:
         ref = result.truth.trajectories.get(robot)
         if ref is not None:
             q = ref.pose_array()
-            top.plot(q[:, 0], q[:, 1], "--", color=line.get_color(), alpha=0.6, label=f"{robot} truth")
-            height.plot(ref.t, q[:, 2], "--", color=line.get_color(), alpha=0.6)
+            top.plot(q[:, 0], q[:, 1], **TRUTH_STYLE, label=f"{robot} truth")
+            height.plot(ref.t, q[:, 2], **TRUTH_STYLE, label=f"{robot} truth")
     top.set(xlabel="x [m]", ylabel="y [m]", title="trajectory (top view)", aspect="equal")
     height.set(xlabel="t [s]", ylabel="z [m]", title="height")
     top.legend(fontsize=8)
+    height.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(file, dpi=110)
+    plt.close(fig)
+
+
+def plot_errors(result: RunResult, robot: str, file: Path) -> None:
+    """Estimate minus truth per world axis at the matched states (unaligned) with the +-3 sigma band."""
+    m = matched_positions(result.trajectories[robot], result.truth.trajectories[robot],
+                          result.position_sigma.get(robot))
+    plt = _pyplot()
+    fig, axes = plt.subplots(m.error.shape[1], 1, sharex=True, figsize=(10, 2.2 * m.error.shape[1] + 0.6))
+    for i, (ax, name) in enumerate(zip(axes, "xyz")):
+        if m.sigma is not None:
+            ax.fill_between(m.t, -3 * m.sigma[:, i], 3 * m.sigma[:, i], color="C0", alpha=0.2, label="±3σ")
+        ax.plot(m.t, m.error[:, i], color="C3", linewidth=1.0, label="estimate − truth")
+        ax.axhline(0.0, color="gray", linewidth=0.5)
+        ax.set_ylabel(f"{name} error [m]")
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[0].set_title(f"{robot}: position error vs truth ({len(m.t)} of {len(result.trajectories[robot])} states "
+                      "matched; no alignment)")
+    axes[-1].set_xlabel("t [s]")
     fig.tight_layout()
     fig.savefig(file, dpi=110)
     plt.close(fig)
@@ -57,6 +83,9 @@ def plot_residuals(result: RunResult, file: Path) -> None:
 def write_plots(result: RunResult, folder: Path) -> None:
     if result.trajectories:
         plot_trajectories(result, folder / "trajectory.png")
+    for robot, ev in result.evaluation.get("trajectories", {}).items():
+        if ev["matched_poses"]:
+            plot_errors(result, robot, folder / f"error_vs_time_{robot}.png")
     plot_residuals(result, folder / "residuals.png")
     for name, draw in result.problem.plots.items():
         draw(folder / f"{name}.png")

@@ -8,7 +8,7 @@ import numpy as np
 from ..graph.builder import Problem
 from ..progress import Progress
 from .batch import solve_batch
-from .checks import check_solution
+from .checks import check_solution, chi_square_per_dof
 from .factorization import linear_settings, qr_marginals
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
@@ -34,9 +34,11 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     # they left the window): its full-graph cost may exceed a good initial one, and its chi-square
     # is not judged unless asked for; a tenfold rise still means divergence
     lagged = kind == "fixed_lag"
-    check_solution(problem, graph, result.values, result.initial_error, result.final_error,
-                   settings.get("max_cost_ratio", float("inf") if lagged else DEFAULT_MAX_COST_RATIO),
-                   FIXED_LAG_ALLOWED_RISE if lagged else 1e-6)
+    result.rejection = check_solution(
+        problem, graph, result.values, result.initial_error, result.final_error,
+        settings.get("max_cost_ratio", float("inf") if lagged else DEFAULT_MAX_COST_RATIO),
+        FIXED_LAG_ALLOWED_RISE if lagged else 1e-6)
+    result.chi2_per_dof = chi_square_per_dof(graph, result.values, result.final_error)
     if settings.get("marginals", True) and kind != "fixed_lag":
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
@@ -44,6 +46,9 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
             result.covariances = qr_marginals(graph, result.values, marginal_keys)
         else:
             result.covariances = marginal_covariances(graph, result, marginal_keys)
+        if settings.get("a_posteriori_sigmas") and result.chi2_per_dof is not None:
+            result.covariances = {k: c * result.chi2_per_dof for k, c in result.covariances.items()}
+            result.sigmas_scaled = True
     return result
 
 

@@ -74,23 +74,27 @@ def residual_dimension(graph: gtsam.NonlinearFactorGraph) -> int:
 
 def check_solution(problem: Problem, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
                    initial_error: float, final_error: float, max_cost_ratio: float,
-                   allowed_rise: float = 1e-6) -> None:
+                   allowed_rise: float = 1e-6) -> str | None:
     """Fail on divergence (non-finite cost, or a cost above the initial one by more than the
-    relative `allowed_rise`) or a large final residual."""
+    relative `allowed_rise`); return why the chi-square gate refuses the solution (a large final
+    residual), or None when it passes."""
     if not np.isfinite(final_error):
         raise SolverError("the solver diverged: the cost became non-finite; check initial values and sigmas")
     if final_error > initial_error * (1 + allowed_rise) and final_error > 1e-9:
         raise SolverError(f"the solver diverged: cost rose from {initial_error:.6g} to {final_error:.6g}")
-    dof = residual_dimension(graph) - values.dim()
-    if dof <= 0:
-        return  # as many unknowns as measurements: no redundancy to judge the fit by
-    ratio = 2.0 * final_error / dof
-    if ratio > max_cost_ratio:
-        worst = worst_entries(problem, values)
-        raise SolverError(
-            f"the solver stopped with a large residual: chi-square per degree of freedom {ratio:.3g} (about 1 is "
+    ratio = chi_square_per_dof(graph, values, final_error)
+    if ratio is None or ratio <= max_cost_ratio:
+        return None  # no redundancy to judge the fit by, or a fit the sigmas explain
+    return (f"the solver stopped with a large residual: chi-square per degree of freedom {ratio:.3g} (about 1 is "
             f"expected; the limit is solver.max_cost_ratio={max_cost_ratio:g}); largest contributions: "
-            f"{worst}; check the sigmas, the data association, or the initial values")
+            f"{worst_entries(problem, values)}; check the sigmas, the data association, or the initial values")
+
+
+def chi_square_per_dof(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, final_error: float) -> float | None:
+    """2 * cost / (residual dimension - unknowns): about 1 when the sigmas fit the data; its square
+    root is sigma0, the a-posteriori standard deviation of unit weight. None without redundancy."""
+    dof = residual_dimension(graph) - values.dim()
+    return 2.0 * final_error / dof if dof > 0 else None
 
 
 def worst_entries(problem: Problem, values: gtsam.Values, n: int = 3) -> str:

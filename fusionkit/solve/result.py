@@ -22,11 +22,22 @@ class SolveResult:
     history: list[float] = field(default_factory=list)
     marginal: Callable[[int], np.ndarray] | None = None  # solver-native marginal covariance, if any
     warmup_seconds: float = 0.0  # incremental solvers: the batch-solved start-up segment
+    chi2_per_dof: float | None = None  # 2 cost / degrees of freedom; None without redundancy
+    rejection: str | None = None  # why the chi-square gate refused the solution; None: accepted
+    sigmas_scaled: bool = False  # covariances multiplied by sigma0^2 (solver.a_posteriori_sigmas)
+
+    @property
+    def sigma0(self) -> float | None:
+        """A-posteriori standard deviation of unit weight: sqrt(chi-square per degree of freedom)."""
+        return None if self.chi2_per_dof is None else float(np.sqrt(self.chi2_per_dof))
 
     def stats(self) -> dict:
         out = {"solver": self.solver, "iterations": self.iterations, "seconds": self.seconds,
                "initial_cost": self.initial_error, "final_cost": self.final_error,
-               "cost_history": self.history}
+               "cost_history": self.history, "status": "rejected" if self.rejection else "accepted",
+               "chi2_per_dof": self.chi2_per_dof, "sigma0": self.sigma0, "sigmas_scaled_by_sigma0": self.sigmas_scaled}
+        if self.rejection:
+            out["rejection"] = self.rejection
         if self.step_latency is not None and len(self.step_latency):
             lat = self.step_latency * 1e3
             out["step_latency_ms"] = {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)),

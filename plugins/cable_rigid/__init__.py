@@ -1,5 +1,5 @@
 """Built-in `cable_rigid` plugin: the cdpr robot model, rigid/elastic cable factors, pulley
-pseudo-measurements (spec cable_rigid.md)."""
+pseudo-measurements (models: docs/models/cable_rigid.md)."""
 
 from fusionkit import hookimpl
 

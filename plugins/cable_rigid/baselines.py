@@ -1,4 +1,4 @@
-"""The comparison of spec Table 4.1: localization error of forward kinematics alone, visual
+"""The comparison of thesis Table 4.1: localization error of forward kinematics alone, visual
 odometry alone and the fused graph, from one run of a cable-robot config with truth.
 
 - forward kinematics: positions from the encoder readings with the calibrated pulleys and

@@ -1,9 +1,10 @@
-"""Forward kinematics of a cable robot from its encoders (spec eq. 4.1 solved for the pose).
+"""Forward kinematics of a cable robot from its encoders (thesis eq. 4.1 solved for the pose).
 
 With n < 6 cables the pose is not determined by the lengths alone; the forward kinematics here
 solves for the position at a given orientation (the one a controller commands or assumes, identity
 by default), which is what "forward kinematics alone" means for an under-constrained robot: it
-cannot see a swing that keeps the cable lengths (spec cable_rigid.md, sequence 01).
+cannot see a swing that keeps the cable lengths (the thesis's sequence 01;
+docs/models/cable_rigid.md#forward-kinematics-baseline).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ def forward_kinematics(pulleys: np.ndarray, offsets: np.ndarray, attachments: np
                        rotations: np.ndarray | None = None, stretch: np.ndarray | None = None
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Positions (K, 3) minimizing sum_i (||R_k b_i + p_k - a_i|| - l*_ik)^2 per pose, with
-    l*_ik = (z_ik - l0_i) / (1 - stretch_ik) (eq. 4.1, or 4.2 with stretch = T/EA); and the rms
+    l*_ik = (z_ik - l0_i) / (1 - stretch_ik) (thesis eq. 4.1, or 4.2 with stretch = T/EA); and the rms
     length residual (K,) in m. pulleys a_i (n, 3), offsets l0_i (n,), attachments b_i (n, 3) in
     the end-effector frame, z (K, n) encoder readings, rotations (K, 3, 3) (default identity).
     Gauss-Newton on all poses at once, from `suspended_start`."""

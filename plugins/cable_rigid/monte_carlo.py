@@ -1,4 +1,4 @@
-"""Monte-Carlo self-calibration of a cable robot (spec cable_rigid.md, "Initialization"): pulleys
+"""Monte-Carlo self-calibration of a cable robot (docs/models/cable_rigid.md#monte-carlo-initialization): pulleys
 a_i, encoder offsets l0_i and the VO scale s from the encoder readings and the unscaled visual
 odometry alone -- no prior values for the pulleys. Pure numpy; the `cable.monte_carlo`
 initializer (initializers.py) feeds it from a config.
@@ -12,7 +12,7 @@ c_ik = X0 (R_k b_i) and d_k = R_X0 t_k computed once. The encoders are read agai
 sample, dz_ik = z_ik - z_i0, and a particle's encoder offset is l0_i = z_i0 - L0_i with L0_i the
 cable length at the first pose:
 
-    r_ik = dz_ik + L0_i - |q_ik(s) - a_i|         (eq. 4.1 with l0 eliminated)
+    r_ik = dz_ik + L0_i - |q_ik(s) - a_i|         (thesis eq. 4.1 with l0 eliminated)
 
 Each cable has its own particle system over theta = (a_i, eps_i, s), L0_i = |a_i - c_i0| + eps_i.
 The parametrization puts the first pose's constraint into the coordinates: particles start
@@ -70,7 +70,7 @@ covered (`motion_stages`): stage 1 ends where the motion first leaves its first 
 where it leaves the plane of the first two, stage 3 is the end. A line of motion leaves the
 pulley on a ring around it (the scale and the position along the line follow from the curvature
 of the length profile, the angle around the line not at all); with the initial-length shell this
-is the spec's shell of thickness +-initial_length_spread narrowed to a band; a second axis cuts
+is the thesis's shell of thickness +-initial_length_spread narrowed to a band; a second axis cuts
 it to one or two spots, elongated along the cable; more motion shrinks them to a cluster. The
 directions, not fractions of the trajectory, because any motion plan must work; directions of
 velocity, not the spread of positions, because VO drift spreads positions along every axis.

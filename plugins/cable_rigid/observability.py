@@ -1,4 +1,5 @@
-"""Observability of the cable calibration from a trajectory (spec cable_rigid.md, eq. 4.6/4.7).
+"""Observability of the cable calibration from a trajectory (thesis eqs. 4.6-4.7;
+docs/models/cable_rigid.md#observability).
 
 Derivation
 ----------
@@ -22,14 +23,14 @@ Known scale (metric poses, e.g. motion capture); exact, rotations included:
 Rigid (or constant alpha) the last two columns are proportional and merge into one unknown,
 c = |a~|^2 - l0~^2: rows [-2 p~^T, 2 z~, 1] . [a~, l0~, c] = z~^2 - |p~|^2 (5 unknowns).
 
-Unknown scale (monocular VO, eq. 4.3: translations t_k known up to the factor s). With a constant
+Unknown scale (monocular VO, thesis eq. 4.3: translations t_k known up to the factor s). With a constant
 orientation the attachment point is p_k = s t_k + r, r = R b, and p_k - a = s t~_k - a~ with
 a~ = a - r - s mean(t):
 
     [-2 alpha^2 t~^T, alpha^2 |t~|^2, 2 z~, alpha^2, -1] . [s a~, s^2, l0~, |a~|^2, l0~^2] = z~^2
 
 rigid: [-2 t~^T, |t~|^2, 2 z~, 1] . [s a~, s^2, l0~, |a~|^2 - l0~^2] = z~^2 -- the six unknowns
-(s a, s^2, l0, |a|^2 - l0^2) of eq. 4.7. The spec prints alpha where the expansion gives alpha^2,
+(s a, s^2, l0, |a|^2 - l0^2) of thesis eq. 4.7. The thesis prints alpha where the expansion gives alpha^2,
 and its single constant column holds only for a constant alpha. When the orientation varies,
 r_k = r + d_k and each row misses -2 alpha^2 d_k.(a~ - s t~_k) + alpha^2 |d_k|^2; lifting those
 terms would add four unknowns duplicating a~ and s, so they are left out: this acts like an

@@ -10,7 +10,8 @@ from fusionkit.geometry import body_point_range
 
 def elastic_cable_residual(pose: gtsam.Pose3, pulley: np.ndarray, offset: float, b: np.ndarray,
                            stretch: float, z: float, H: list | None = None) -> np.ndarray:
-    """Elastic cable (spec eq. 4.2): e = (1 - T/EA) l* + l0 - z, with stretch = T/EA (measured
+    """Elastic cable (thesis eq. 4.2, docs/models/cable_rigid.md#elastic-cable):
+    e = (1 - T/EA) l* + l0 - z, with stretch = T/EA (measured
     tension over axial stiffness) and l* = ||R b + t - a||. Jacobians w.r.t. pose, pulley, offset."""
     alpha = 1.0 - stretch
     J = [None, None] if H is not None else None

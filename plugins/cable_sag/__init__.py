@@ -1,4 +1,4 @@
-"""`cable_sag` plugin: suspended cable robots with heavy, sagging cables (spec cable_sag.md) --
+"""`cable_sag` plugin: suspended cable robots with heavy, sagging cables (docs/models/cable_sag.md) --
 the catenary statics through one reference cable, the kinematic-static calibration factors, the
 fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
 plugin; it adds to the rigid-cable plugin (its `cdpr` model, helpers) without changing it."""

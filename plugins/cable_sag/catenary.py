@@ -1,4 +1,5 @@
-"""The inextensible heavy cable (catenary, spec cable_sag.md eqs. 5.1-5.4), in a form that stays
+"""The inextensible heavy cable (catenary, thesis eqs. 5.1-5.4;
+docs/models/cable_sag.md#catenary), in a form that stays
 finite and accurate for long heavy cables, near-vertical cables and small horizontal forces.
 
 A cable of weight w (N/m) pulls the end-effector with a horizontal force H > 0 (towards the
@@ -9,7 +10,7 @@ its rise (height of the pulley above the attachment) then give
     length l = (L / H) (V C(beta) + T0 S(beta)),   rise = (L / H) (T0 C(beta) + V S(beta)),
 
 with beta = w L / H, T0 = sqrt(H^2 + V^2), S(beta) = sinh(beta) / beta and
-C(beta) = (cosh(beta) - 1) / beta = 2 sinh^2(beta / 2) / beta. This is eqs. 5.1-5.4 rewritten:
+C(beta) = (cosh(beta) - 1) / beta = 2 sinh^2(beta / 2) / beta. This is thesis eqs. 5.1-5.4 rewritten:
 their C1, C2 subtract two numbers of the size of cosh(w x / H) + w z_a / H, which cancel
 catastrophically when H is small, and overflow for long heavy cables; here only beta enters a
 hyperbolic function, no large terms cancel, and w -> 0 gives the straight cable
@@ -73,7 +74,7 @@ def catenary(H, V, L, w, jacobian: bool = False):
 
 
 def catenary_spec_form(H: float, V: float, L: float, w: float, z_pulley: float) -> tuple[float, float]:
-    """Eqs. 5.1-5.4 as printed (x from the pulley, z_i(0) = z_pulley): (arc length, height of the
+    """Thesis eqs. 5.1-5.4 as printed (x from the pulley, z_i(0) = z_pulley): (arc length, height of the
     attachment point z_i(L)). For cross-checking `catenary` where these are computable."""
     C1 = (H / w) * np.arcsinh(-V / H) - L
     C2 = np.cosh(C1 * w / H) - (w / H) * z_pulley

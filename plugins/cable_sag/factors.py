@@ -1,8 +1,8 @@
-"""Factor types of the sagging-cable plugin (spec cable_sag.md, fig. 5.2).
+"""Factor types of the sagging-cable plugin (docs/models/cable_sag.md; thesis fig. 5.2).
 
 `cable.sag`, one factor per static pose k with the lengths of all four cables, residual (8,):
 
-    e_len_i    = l_C_i[k] + l0_i - z_i[k]        (eq. 5.12; l_C_i the catenary arc length 5.4)
+    e_len_i    = l_C_i[k] + l0_i - z_i[k]        (thesis eq. 5.12; l_C_i the catenary arc length 5.4)
     e_height_i = rise the catenary reaches - (a_i - p_b_i)_z    (eq. 5.13)
 
 over the pose X_k, its orientation correction dR_k (the statics see R_k dR_k: an under-actuated
@@ -83,7 +83,7 @@ def reference_force_factor(key: int, f_m: float, noise) -> gtsam.CustomFactor:
 
 class SagCable(FactorType):
     name = "cable.sag"
-    summary = ("heavy sagging cables at static poses: catenary length + offset = encoder (eq. 5.12) and the "
+    summary = ("heavy sagging cables at static poses: catenary length + offset = encoder (thesis eq. 5.12) and the "
                "catenary reaches the attachment height (5.13), forces through the reference cable (5.11)")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
@@ -139,7 +139,7 @@ class SagCable(FactorType):
 
 class ReferenceForce(FactorType):
     name = "cable.reference_force"
-    summary = "force sensor on the reference cable: ||(H_ref, V_ref)|| = f_m (eq. 5.14)"
+    summary = "force sensor on the reference cable: ||(H_ref, V_ref)|| = f_m (thesis eq. 5.14)"
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",

@@ -5,7 +5,7 @@ By default each pose is put in equilibrium: the static simulator solves the inve
 pose's position and yaw with the guessed pulleys (static_solver.inverse_pose), so the initial
 forces and orientation satisfy the statics and the attachment heights (eq. 5.13) exactly, and only
 the lengths disagree while the pulleys and offsets are wrong. Where that has no solution (a cable
-would be slack with the guessed pulleys), or with `equilibrium: false`, the spec's eqs. 5.15-5.17:
+would be slack with the guessed pulleys), or with `equilibrium: false`, thesis eqs. 5.15-5.17:
 
     V0 = m g / 4,   H0 = V0 / tan(alpha),   alpha = elevation of the reference cable's chord,
 
@@ -30,7 +30,7 @@ from .static_solver import StaticsError, initial_reference_force, inverse_pose
 class SagForces(Initializer):
     name = "cable.sag_forces"
     summary = ("initial reference-cable forces and orientation corrections at every static pose: the pose in "
-               "equilibrium with the guessed pulleys (fallback: eqs. 5.15-5.17)")
+               "equilibrium with the guessed pulleys (fallback: V = m g / 4, H = V / tan(alpha))")
     robot_fields = ("robot",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "reference": {"type": "integer", "minimum": 0},
@@ -65,7 +65,8 @@ class SagForces(Initializer):
             ctx.set_initial(corrections.key(k), dR)
         if fallback:
             ctx.notes.append(f"{spec.label}: {fallback} pose(s) have no equilibrium with the guessed pulleys; "
-                             "their forces start from eqs. 5.15-5.17")
+                             "their forces start from V = m g / 4, H = V / tan(alpha) "
+                             "(docs/models/cable_sag.md#initial-forces)")
 
 
 INITIALIZERS = [SagForces]

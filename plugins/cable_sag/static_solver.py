@@ -7,7 +7,7 @@ the statics of statics.py (the same model as the calibration factors; exact Jaco
 - forward problem: the four arc lengths -> equilibrium pose and forces (8 equations: lengths and
   heights; 8 unknowns: pose and reference force).
 
-The initial reference force is eqs. 5.15-5.17: V = m g / 4, H = V / tan(alpha), alpha the
+The initial reference force is thesis eqs. 5.15-5.17: V = m g / 4, H = V / tan(alpha), alpha the
 elevation of the reference cable's chord.
 """
 
@@ -43,7 +43,7 @@ class StaticPose:
 
 
 def initial_reference_force(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, robot: SagRobot) -> np.ndarray:
-    """Eqs. 5.15-5.17: V0 = m g / 4, H0 = V0 / tan(alpha)."""
+    """Thesis eqs. 5.15-5.17: V0 = m g / 4, H0 = V0 / tan(alpha)."""
     i = robot.reference
     chord = pulleys[i] - (R @ robot.attachments[i] + t)
     alpha = np.arctan2(chord[2], np.hypot(chord[0], chord[1]))
@@ -52,7 +52,7 @@ def initial_reference_force(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, r
 
 
 def euler_zyx(yaw: float, pitch: float, roll: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), angles in rad (the spec's data files, in degrees)."""
+    """R = Rz(yaw) Ry(pitch) Rx(roll), angles in rad (the thesis's finite-element data files give degrees)."""
     cy, sy, cp, sp, cr, sr = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
     return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
                      [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],

@@ -1,5 +1,5 @@
-"""Statics of a suspended 4-cable robot with heavy cables, through one reference cable (spec
-cable_sag.md eqs. 5.5-5.11), with exact Jacobians.
+"""Statics of a suspended 4-cable robot with heavy cables, through one reference cable (thesis
+eqs. 5.5-5.11; docs/models/cable_sag.md#statics-through-a-reference-cable), with exact Jacobians.
 
 At a static pose (R, t) cable i leaves its pulley a_i and holds the end-effector at
 p_i = R b_i + t. Its vertical plane has the horizontal unit vector s_i = (p_i - a_i)_xy / L_i

@@ -8,7 +8,8 @@ import numpy as np
 
 def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, measured: gtsam.Pose3,
                             H: list | None = None) -> np.ndarray:
-    """Relative pose with unknown scale (spec eq. 4.3): the sensor reports (R, t / s).
+    """Relative pose with unknown scale (thesis eq. 4.3,
+    docs/models/cable_rigid.md#scaled-visual-odometry): the sensor reports (R, t / s).
 
     The residual lives in the sensor's own units, where its noise does not depend on s:
     B = xa^-1 xb, B_s = (R_B, t_B / s), e = Log(measured^-1 B_s) (rotation rad, translation in

@@ -3,6 +3,7 @@ was wrong and what is accepted; a non-zero exit; no traceback; and no output fol
 
 from __future__ import annotations
 
+import json
 import os
 import pathlib
 import shutil
@@ -329,8 +330,10 @@ def test_missing_sigma(tmp_path, out, capsys):
 @pytest.mark.parametrize("old, new, at, key, what", [
     ("    sigma: 10.0 ", "    sigma: abc ", "sigma: abc", "parameters.vo_scale.sigma",
      "got 'abc'; expected a number, a list or null"),
-    ("    sigma: 10.0 ", "    sigma: -1 ", "sigma: -1", "parameters.vo_scale.sigma", "sigmas must be positive and finite"),
-    ("    value: 1.0 ", "    valu: 1.0 ", "vo_scale:", "parameters.vo_scale", "needs exactly one of the keys value, values"),
+    ("    sigma: 10.0 ", "    sigma: -1 ", "sigma: -1", "parameters.vo_scale.sigma",
+     "sigmas must be positive and finite (to hold a parameter at its value, write `fixed: true` instead of a sigma)"),
+    ("    value: 1.0 ", "    valu: 1.0 ", "valu: 1.0", "parameters.vo_scale.valu",
+     "unknown key 'valu'; accepted keys: count, fixed, sigma, summary, time_varying, type, unit, value, values"),
     ("    type: scalar", "    type: scaler", "type: scaler", "parameters.vo_scale.type",
      ("unknown variable type 'scaler'; accepted: imu_bias, point2, point3, pose2, pose3, rot3, scalar, velocity3, "
      "vectorN")),
@@ -381,7 +384,7 @@ def test_bad_override_paths(out, capsys, assignment, message):
     ("solver.type=isam", "solver.type", "got 'isam'; expected one of: batch, isam2, fixed_lag"),
     ("factors.0.sigma.rotation=abc", "factors[0].sigma.rotation", "got 'abc'; expected a number > 0"),
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
-    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: absolute_tolerance, factorization, lag, "
+    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: a_posteriori_sigmas, absolute_tolerance, factorization, lag, "
                                      "marginals, max_cost_ratio, max_iterations, method, ordering, refine, relative_tolerance, "
                                      "relinearize_threshold, type, warmup")),
     ("solver.refine={vo: {sigma: 1}}", "solver.refine.vo",
@@ -535,9 +538,24 @@ def test_origin_prior_makes_the_odometry_only_graph_valid(tmp_path, capsys):
 # ---------------------------------------------------------------- 7. large residual / divergence
 
 
+def rejected(capsys, argv: list[str], out: Path) -> str:
+    """Run the CLI; assert exit 4 (the chi-square gate refused the solution), one stderr line, and the
+    complete outputs written with status: rejected; return the line without its prefix and suffix."""
+    code = main(argv)
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert code == 4 and len(lines) == 1, captured.err
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "rejected" and (out / "calibration.yaml").is_file()
+    suffix = f"; the outputs were written with status: rejected to inspect ({out}/report.json)"
+    assert lines[0].startswith(PREFIX) and lines[0].endswith(suffix)
+    assert report["solver"]["rejection"] == lines[0][len(PREFIX):-len(suffix)].split(": ", 1)[1]
+    return lines[0][len(PREFIX):-len(suffix)]
+
+
 def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
     tiny = [f"factors.{i}.sigma.{axis}=1e-4" for i in (0, 1) for axis in ("rotation", "translation")]
-    message = fails(capsys, run(SCALED_VO, out, *FAST, *[arg for s in tiny for arg in ("--set", s)]), out=out)
+    message = rejected(capsys, run(SCALED_VO, out, *FAST, *[arg for s in tiny for arg in ("--set", s)]), out)
     assert message.startswith(f"{SCALED_VO}: the solver stopped with a large residual: chi-square per degree of "
                               "freedom ")
     ratio = float(message.split("chi-square per degree of freedom ")[1].split(" ")[0])
@@ -548,10 +566,31 @@ def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
 
 
 def test_max_cost_ratio_is_the_limit(out, capsys):
-    message = fails(capsys, run(SCALED_VO, out, *FAST, "--set", "solver.max_cost_ratio=0.5"), out=out)
+    message = rejected(capsys, run(SCALED_VO, out, *FAST, "--set", "solver.max_cost_ratio=0.5"), out)
     assert "the limit is solver.max_cost_ratio=0.5)" in message
     ratio = float(message.split("chi-square per degree of freedom ")[1].split(" ")[0])
     assert 0.5 < ratio < 10  # the same run passes with the default limit of 10
+    solver = json.loads((out / "report.json").read_text())["solver"]
+    assert solver["chi2_per_dof"] == pytest.approx(ratio, rel=1e-2)
+    assert solver["sigma0"] == pytest.approx(ratio ** 0.5, rel=1e-2)
+
+
+def test_a_posteriori_sigmas_are_the_plain_ones_times_sigma0(tmp_path, capsys):
+    plain, scaled = tmp_path / "plain", tmp_path / "scaled"
+    assert main(run(SCALED_VO, plain, *FAST)) == 0
+    assert main(run(SCALED_VO, scaled, *FAST, "--set", "solver.a_posteriori_sigmas=true")) == 0
+    assert "sigmas below are scaled by sigma0" in capsys.readouterr().out
+    a, b = (json.loads((f / "report.json").read_text()) for f in (plain, scaled))
+    sigma0 = b["solver"]["sigma0"]
+    assert a["solver"]["sigma0"] == pytest.approx(sigma0) and b["solver"]["sigmas_scaled_by_sigma0"] is True
+    assert b["parameters"]["cam"]["vo_scale"]["sigma"] == pytest.approx(a["parameters"]["cam"]["vo_scale"]["sigma"]
+                                                                        * sigma0, rel=1e-9)
+
+
+def test_library_estimate_raises_on_a_rejected_solution():
+    import fusionkit
+    with pytest.raises(SolverError, match="the solver stopped with a large residual"):
+        fusionkit.run(SCALED_VO, ["sources.0.params.duration=5", "solver.max_cost_ratio=0.5"])
 
 
 @pytest.mark.parametrize("initial, final, message", [

@@ -94,7 +94,8 @@ def _schema_error(schema: dict, text: str) -> ConfigError:
 def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     err = _schema_error(CONFIG_SCHEMA, "robots: {cam: {description: r.yaml}}\nfactors: [{type: a}]\n"
                                        "solver:\n  type: batch\n  metod: lm\n")
-    assert str(err) == ("c.yaml:5: solver.metod: unknown key 'metod'; accepted keys: absolute_tolerance, "
+    assert str(err) == ("c.yaml:5: solver.metod: unknown key 'metod'; accepted keys: a_posteriori_sigmas, "
+                        "absolute_tolerance, "
                         "factorization, lag, marginals, max_cost_ratio, max_iterations, method, ordering, "
                         "refine, relative_tolerance, "
                         "relinearize_threshold, type, warmup")
@@ -110,7 +111,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, factorization, "
                 "ordering, max_iterations, "
                 "relative_tolerance, absolute_tolerance, lag, warmup, relinearize_threshold, max_cost_ratio, marginals, "
-                "refine")),
+                "a_posteriori_sigmas, refine")),
 ])
 def test_wrong_values_say_what_is_accepted(solver, message):
     err = _schema_error(CONFIG_SCHEMA, f"robots: {{cam: {{description: r.yaml}}}}\nfactors: [{{type: a}}]\n"
@@ -223,7 +224,8 @@ def test_errors_in_overridden_values_point_at_the_set_not_at_a_file_line():
     assert err.value.line is None
     with pytest.raises(ConfigError) as err:
         load_config(SCALED_VO, ["solver.typo=1"])
-    assert str(err.value).startswith(f"{SCALED_VO}: solver.typo: unknown key 'typo'; accepted keys: absolute_tolerance")
+    assert str(err.value).startswith(f"{SCALED_VO}: solver.typo: unknown key 'typo'; accepted keys: a_posteriori_sigmas, "
+                                     "absolute_tolerance")
     assert str(err.value).endswith("(from --set solver.typo=1)")
     # an error elsewhere keeps its file line even when --set was used
     with pytest.raises(ConfigError) as err:

@@ -208,8 +208,13 @@ def _fake_distribution(folder: Path, module_source: str) -> dict:
     return {"root": folder, "env": dict(os.environ, PYTHONPATH=str(folder))}
 
 
-def test_misspelled_hook_is_an_error(tmp_path):
-    """A @hookimpl whose name is no hook (here `register_factor_type`) fails loudly, naming it."""
+WARNING = ("fusionkit: warning: plugin 'probe' (entry point probe = probe_plugin of distribution probe-plugin): "
+           "{reason}; its types are unavailable (configs that do not use them run)")
+
+
+def test_misspelled_hook_is_named_and_the_plugin_left_out(tmp_path):
+    """A @hookimpl whose name is no hook (here `register_factor_type`) is named with its distribution
+    and entry point on every command, and the plugin is left out; the rest works."""
     fake = _fake_distribution(tmp_path, """
         from fusionkit import hookimpl
 
@@ -217,9 +222,29 @@ def test_misspelled_hook_is_an_error(tmp_path):
         def register_factor_type():
             return []
     """)
-    proc = run([*_fusionkit_cmd(), "plugins"], fake)
-    assert proc.returncode == 2, (proc.stdout, proc.stderr)
-    assert "unknown hook 'register_factor_type'" in proc.stderr and "probe_plugin" in proc.stderr
+    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    assert proc.returncode == 0, proc.stderr
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith(WARNING.split("{reason}")[0]) and "unknown hook 'register_factor_type'" in line
+    assert "probe" not in json.loads(proc.stdout) and "fusionkit_plugins.pose" in json.loads(proc.stdout)
+
+
+def test_plugin_that_fails_to_import_does_not_stop_configs_that_do_not_use_it(tmp_path):
+    fake = _fake_distribution(tmp_path, """
+        import a_module_that_is_not_installed
+    """)
+    config = REPO / "configs" / "scaled_vo_mocap.yaml"
+    proc = run([*_fusionkit_cmd(), "validate", str(config), "--set", "sources.0.params.duration=4"], fake)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.splitlines() == [WARNING.format(
+        reason="ModuleNotFoundError: No module named 'a_module_that_is_not_installed'")]
+    proc = run([*_fusionkit_cmd(), "validate", str(config), "--set", "factors.0.type=probe.altimeter"], fake)
+    assert proc.returncode == 2
+    error = proc.stderr.splitlines()[-1]
+    assert "factors[0].type: unknown factor type 'probe.altimeter'; installed: " in error
+    assert error.endswith("1 plugin(s) failed to load: plugin 'probe' (entry point probe = probe_plugin of "
+                          "distribution probe-plugin): ModuleNotFoundError: No module named "
+                          "'a_module_that_is_not_installed' (from --set factors.0.type=probe.altimeter)")
 
 
 def test_only_marked_functions_are_hooks(tmp_path):

@@ -112,11 +112,24 @@ def test_a_user_file_with_an_output_name_is_never_overwritten(project, tmp_path,
     assert snapshot(out) == before
 
 
-def test_a_failed_run_leaves_no_folder_behind(project, tmp_path, capsys):
+def test_a_failure_while_writing_leaves_no_folder_behind(project, tmp_path, capsys, monkeypatch):
+    import fusionkit.report.outputs as outputs
+
+    def half_written(result, folder, plots=True):
+        (folder / "report.json").write_text("{")
+        raise OSError(28, "No space left on device", str(folder / "calibration.yaml"))
+
+    monkeypatch.setattr(outputs, "write_outputs", half_written)
     out = tmp_path / "new" / "deeper" / "result"
-    refused(capsys, ["run", str(project / "config.yaml"), "--out", str(out), "--set", "solver.max_cost_ratio=1e-9",
-                     *FAST], "large residual")
+    refused(capsys, ["run", str(project / "config.yaml"), "--out", str(out), *FAST], "No space left on device")
     assert not (tmp_path / "new").exists()
+    earlier = tmp_path / "earlier"
+    monkeypatch.undo()
+    assert main(["run", str(project / "config.yaml"), "--out", str(earlier), *FAST]) == 0
+    before = snapshot(earlier)
+    monkeypatch.setattr(outputs, "write_outputs", half_written)
+    refused(capsys, ["run", str(project / "config.yaml"), "--out", str(earlier), *FAST], "No space left on device")
+    assert snapshot(earlier) == before  # the earlier output is untouched, no temporary folder inside
 
 
 def test_simulate_refuses_a_folder_it_did_not_write_and_replaces_its_own(tmp_path, capsys):
