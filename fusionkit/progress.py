@@ -18,8 +18,8 @@ class StatusLine:
     (iteration, cost) adds the solver's progress to that line. It appears once the work has taken
     SHOW_AFTER_S and is erased when the context ends."""
 
-    def __init__(self) -> None:
-        self._status = Console(stderr=True).status("")
+    def __init__(self, console: Console | None = None) -> None:
+        self._status = (console or Console(stderr=True)).status("")
         self._text = ""
         self._stage = ""
         self._timer = threading.Timer(SHOW_AFTER_S, self._begin)

@@ -170,3 +170,54 @@ def test_subprocess_validate_and_run(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert (tmp_path / "out" / "scaled_vo_mocap" / "report.json").is_file()  # default: out/<config name>
+
+
+def test_version_and_simulate_help_list_every_installed_scenario_with_its_parameters(capsys):
+    import fusionkit
+    from fusionkit.plugins import registry
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and capsys.readouterr().out == f"fusionkit {fusionkit.__version__}\n"
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = capsys.readouterr().out
+    reg = registry()
+    for name in reg.names("simulators"):
+        cls = reg.get("simulators", name)
+        assert f"  {name:<18} {cls.summary}" in text
+        for key in cls.schema.get("properties", {}):
+            assert f"{key}=" in text or f"{key} (required)" in text, (name, key)
+    assert "duration=25.0" in text  # pose.scaled_vo's default duration
+
+
+def test_debug_and_quiet_are_accepted_after_the_command(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("robots: {}\n")
+    assert main(["validate", str(bad)]) == 2  # without --debug: one line
+    capsys.readouterr()
+    from fusionkit.errors import ConfigError
+    with pytest.raises(ConfigError):  # --debug after the command re-raises (the traceback is shown)
+        main(["validate", "--debug", str(bad)])
+    with pytest.raises(ConfigError):
+        main(["--debug", "validate", str(bad)])
+    assert main(["run", str(SCALED_VO), *FAST, "-q", "--no-plots", "--out", str(tmp_path / "o")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_status_line_shows_the_stage_and_iterations_once_work_takes_long(monkeypatch):
+    import io
+    import time
+
+    from rich.console import Console
+
+    import fusionkit.progress
+    monkeypatch.setattr(fusionkit.progress, "SHOW_AFTER_S", 0.05)
+    stream = io.StringIO()
+    with fusionkit.progress.StatusLine(Console(file=stream, force_terminal=True, width=100)) as status:
+        status.stage("quick")  # over before the line appears: nothing is shown
+        status.stage("solving (batch)")
+        time.sleep(0.3)
+        status(3, 12.5)
+        time.sleep(0.3)
+    shown = stream.getvalue()
+    assert "solving (batch): iteration 3, cost 12.5" in shown and "quick" not in shown
