@@ -51,11 +51,11 @@ def summary_text(result: RunResult) -> str:
                     text += f"   (error vs truth {err['abs_error'][i]:.3g})"
                 lines.append(f"  {label} = {text}")
     for robot, ev in result.evaluation.get("trajectories", {}).items():
-        matched = f"over {ev['matched_poses']} of {ev['states']} states matched to truth"
+        matched = f"{ev['matched_poses']} of {ev['states']} states matched to truth"
         if "ate_rmse_m" not in ev:
-            lines.append(f"  {robot}: no ATE: 0 of {ev['states']} states matched to truth")
+            lines.append(f"  {robot}: no ATE: {matched}")
             continue
-        line = f"  {robot}: ATE RMSE {ev['ate_rmse_m']:.4f} m {matched} (align: {ev['align']})"
+        line = f"  {robot}: ATE RMSE {ev['ate_rmse_m']:.4f} m over {matched} (align: {ev['align']})"
         if "rpe_translation_rmse_m" in ev:
             line += f", RPE {ev['rpe_translation_rmse_m']:.4f} m / {ev['rpe_rotation_rmse_deg']:.3f} deg per step"
         lines.append(line)

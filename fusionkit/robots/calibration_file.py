@@ -44,8 +44,10 @@ def _check_components(doc: Document, path: tuple, entry: dict) -> None:
     if not isinstance(kind, str) or kind not in COMPONENTS:
         return
     for key, what, expected in zip(("components", "sigma_components"), ("value", "sigma"), COMPONENTS[kind]):
-        if key in entry and entry[key] != list(expected):
-            raise doc.error(path + (key,), f"got {entry[key]}; expected [{', '.join(expected)}], the order of a "
+        got = entry.get(key, list(expected))
+        if got != list(expected):
+            shown = f"[{', '.join(map(str, got))}]" if isinstance(got, list) else repr(got)
+            raise doc.error(path + (key,), f"got {shown}; expected [{', '.join(expected)}], the order of a "
                             f"{kind} {what}: reorder the numbers and their names together")
 
 

@@ -54,7 +54,8 @@ CALIBRATED = {
               [[0.001, 0.002, 0.003, 0.004, 0.005, 0.006]]),
     "base": ([gtsam.Pose2(1.1, 2.2, 0.35)], [[0.01, 0.02, 0.003]]),
     "tilt": ([gtsam.Rot3.RzRyRx(0.01, 0.12, -0.03)], [[0.004, 0.005, 0.006]]),
-    "lever": ([np.array([0.01, 0.0, 0.02]), np.array([0.11, 0.01, 0.0])], [[0.001, 0.002, 0.003], [0.004, 0.005, 0.006]]),
+    "lever": ([np.array([0.01, 0.0, 0.02]), np.array([0.11, 0.01, 0.0])],
+              [[0.001, 0.002, 0.003], [0.004, 0.005, 0.006]]),
     "bias": ([gtsam.imuBias.ConstantBias(np.array([0.01, 0.02, 0.03]), np.array([0.001, 0.002, 0.003]))],
              [[0.01, 0.01, 0.01, 0.001, 0.001, 0.001]]),
 }
@@ -102,13 +103,14 @@ def test_labelled_calibration_round_trips_as_a_description_override(ds):
 
 def test_sigma_components_in_another_order_are_refused_with_the_line(ds, capsys):
     path = write_calibration(ds)
-    text = path.read_text().replace("sigma_components: [rx, ry, rz, tx, ty, tz]", "sigma_components: [tx, ty, tz, rx, ry, rz]")
+    text = path.read_text().replace("sigma_components: [rx, ry, rz, tx, ty, tz]",
+                                    "sigma_components: [tx, ty, tz, rx, ry, rz]")
     path.write_text(text)
     line = next(n for n, s in enumerate(text.splitlines(), start=1) if "[tx, ty, tz, rx, ry, rz]" in s)
     with pytest.raises(ConfigError) as err:
         fusionkit.load_config(ds / "config.yaml")
-    assert str(err.value) == (f"{path}:{line}: robots.cam.mount.sigma_components: got ['tx', 'ty', 'tz', 'rx', 'ry', "
-                              "'rz']; expected [rx, ry, rz, tx, ty, tz], the order of a pose3 sigma: reorder the numbers "
-                              "and their names together")
+    assert str(err.value) == (f"{path}:{line}: robots.cam.mount.sigma_components: got [tx, ty, tz, rx, ry, rz]; "
+                              "expected [rx, ry, rz, tx, ty, tz], the order of a pose3 sigma: reorder the numbers and "
+                              "their names together")
     assert main(["validate", str(ds / "config.yaml")]) == 2
     assert capsys.readouterr().err == f"fusionkit: error: {err.value}\n"

@@ -3,6 +3,7 @@ an internal error; the summary and report.json say how many states the ATE cover
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -11,9 +12,14 @@ import numpy as np
 import pytest
 import yaml
 
+import fusionkit
 from fusionkit.cli.main import main
 from fusionkit.data.files import read_csv_stream, read_tum
+from fusionkit.data.stream import pose_stream
 from fusionkit.errors import DataError
+from fusionkit.eval.notes import evaluation_notes
+from fusionkit.pipeline import Truth, evaluate
+from fusionkit.report.summary import summary_text
 from fusionkit.simulate import write_dataset
 
 from test_rosbag import POSES, T, bag_path, write_bag, write_config
@@ -169,3 +175,17 @@ def test_summary_prints_matched_states_and_notes_truth_of_part_of_the_run(ds, tm
     assert f"  note: {note}" in text.splitlines()
     assert note in report["notes"]
     assert report["evaluation"]["trajectories"]["cam"]["matched_poses"] == 60
+
+
+def test_a_robot_whose_estimated_states_miss_the_truth_gets_no_ate_but_a_note(ds):
+    """The clock check runs on every state before solving; states the graph gave no pose (outside the span of
+    the pose streams) are not estimated, so the truth can still match none of the estimated ones."""
+    result = fusionkit.run(ds / "config.yaml")
+    late = pose_stream("truth:cam", 100.0 + np.arange(10) * 0.1, np.tile([0, 0, 0, 0, 0, 0, 1.0], (10, 1)))
+    ev = evaluate(result.config, result.trajectories, result.position_sigma, {}, Truth({"cam": late}))
+    assert ev["trajectories"]["cam"] == {"states": 180, "matched_poses": 0}
+    note = ("truth of cam: no truth pose within 0.01 s of any of its 180 states; no ATE (check that truth and data "
+            "share a clock)")
+    assert evaluation_notes(ev) == [note]
+    text = summary_text(dataclasses.replace(result, evaluation=ev)).splitlines()
+    assert "  cam: no ATE: 0 of 180 states matched to truth" in text and f"  note: {note}" in text
