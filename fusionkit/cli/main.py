@@ -40,7 +40,7 @@ def cmd_run(args) -> int:
     from ..pipeline import estimate
     from ..report.outputs import write_outputs
     from ..report.summary import summary_text
-    from ..report.writer import atomic_directory, check_output_folder
+    from ..report.writer import atomic_directory, check_output_folder, output_entries
 
     config = load_config(args.config, args.set)
     out = Path(args.out) if args.out else Path("out") / config.name
@@ -56,7 +56,8 @@ def cmd_run(args) -> int:
         except OSError as exc:
             raise _write_error(out, exc) from None
     print(summary_text(result))
-    print(f"  outputs: {out}/ (report.json, calibration.yaml, trajectories/, plots/)")
+    written = [name + ("/" if (out / name).is_dir() else "") for name in sorted(output_entries(out))]
+    print(f"  outputs: {out}/ ({', '.join(written)})")
     if result.solution.rejection:
         print(f"fusionkit: error: {args.config}: {result.solution.rejection}; the outputs were written with status: "
               f"rejected to inspect ({out}/report.json)", file=sys.stderr)

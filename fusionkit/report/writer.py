@@ -30,7 +30,7 @@ def _error(out: Path, why: str) -> FusionkitError:
     return FusionkitError(f"--out {out}: {why}")
 
 
-def _marker_entries(folder: Path) -> set[str] | None:
+def output_entries(folder: Path) -> set[str] | None:
     """Entries an earlier fusionkit output wrote into `folder`; None when it has no readable marker."""
     try:
         data = json.loads((folder / MARKER).read_text(encoding="utf-8"))
@@ -59,7 +59,7 @@ def check_output_folder(out: Path, inputs: Iterable[Path] = ()) -> Path:
     entries = {p.name for p in folder.iterdir() if not p.name.startswith(TEMP_PREFIX)}
     if not entries:
         return folder
-    owned = _marker_entries(folder)
+    owned = output_entries(folder)
     if owned is None:
         raise _error(out, f"the folder exists, is not empty and was not written by fusionkit (it has no "
                           f"{MARKER} file); choose a new or empty folder (nothing was changed)")
@@ -96,7 +96,7 @@ def atomic_directory(out: Path, command: str, inputs: Iterable[Path] = ()) -> It
 def _replace_entries(folder: Path, tmp: Path, new: list[str], out: Path) -> None:
     """Move the earlier output's entries aside, the new ones in, then delete the earlier ones.
     A name the user put there (not in the marker) is never touched: writing over it is refused."""
-    owned = _marker_entries(folder) or set()
+    owned = output_entries(folder) or set()
     present = {p.name for p in folder.iterdir() if p != tmp and p.name != MARKER}
     clash = sorted(name for name in new if name in present and name not in owned)
     if clash:
