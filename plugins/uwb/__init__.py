@@ -1,4 +1,4 @@
-"""`uwb` plugin: UWB ranging (spec uwb.md) -- tag-to-anchor ranges with constant or time-varying
+"""`uwb` plugin: UWB ranging (docs/models/uwb.md) -- tag-to-anchor ranges with constant or time-varying
 bias per anchor and an optional scale error, tag-to-tag ranges between robots, differential-drive
 odometry and a constant-velocity prior between ranging epochs, multilateration initialization of
 poses and unknown anchors, and a simulator. The range math is the rigid-cable model's

@@ -1,6 +1,7 @@
-"""The results of spec uwb.md, shared by tests and benchmarks/bench_uwb.py: bias models side by
-side, robust kernels under NLOS outliers, anchor self-calibration against the number of epochs,
-two robots in one graph, and the per-epoch multilateration baseline."""
+"""The UWB results (docs/models/uwb.md), shared by tests and benchmarks/bench_uwb.py: bias models side by
+side (with the estimator's noise levels equal to the simulator's -- a self-consistency check -- or
+misstated), robust kernels under NLOS outliers, anchor self-calibration against the number of
+epochs, two robots in one graph, and the per-epoch multilateration baseline."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from fusionkit.simulate import simulated_config
 from .factors import lever_arm
 from .initializers import multilaterate
 from .labyrinth import read_labyrinth
+from .survey import rigid_fit
 
 SCENARIO = "uwb.sim"
 MODELS = ("none", "constant", "time_varying")
@@ -49,6 +51,18 @@ def bias_rmse(result, robot: str = "a") -> float:
     return float(np.sqrt(np.mean((values - true.values[k.state]) ** 2)))
 
 
+def misstate_noise(config: dict, factors: dict[str, float]) -> None:
+    """Multiply the sigma of every factor entry of type T by factors[T] (e.g. {"uwb.range": 2.0}):
+    the estimator's noise levels misstated against the simulator's. Scaling every entry alike
+    leaves the least-squares estimate unchanged but for the priors (anchors, bias start)."""
+    for entry in config["factors"]:
+        factor, sigma = factors.get(entry["type"], 1.0), entry.get("sigma")
+        if isinstance(sigma, dict):
+            entry["sigma"] = {k: v * factor for k, v in sigma.items()}
+        elif sigma is not None:
+            entry["sigma"] = sigma * factor
+
+
 def run(params: dict, seed: int, robust: dict | None = None, edit=None):
     def change(config):
         config["output"] = {"plots": False}
@@ -63,11 +77,14 @@ def run(params: dict, seed: int, robust: dict | None = None, edit=None):
         return estimate(config)
 
 
-def bias_models(seeds, params: dict | None = None) -> dict:
-    """Per bias model: mean position RMSE and bias RMSE (m) over the seeds, same data."""
+def bias_models(seeds, params: dict | None = None, noise: dict[str, float] | None = None) -> dict:
+    """Per bias model: mean position RMSE and bias RMSE (m) over the seeds, same data. The
+    estimator's noise levels are the simulator's (a self-consistency check), or misstated by
+    `noise` (factor type -> multiplier of its sigma, see misstate_noise)."""
     out = {}
     for model in MODELS:
-        runs = [run({**(params or {}), "bias_model": model}, s) for s in seeds]
+        runs = [run({**(params or {}), "bias_model": model}, s, edit=lambda c: misstate_noise(c, noise or {}))
+                for s in seeds]
         out[model] = {"position_m": float(np.mean([position_rmse(r) for r in runs])),
                       "bias_m": float(np.mean([bias_rmse(r) for r in runs]))}
     return out
@@ -148,3 +165,17 @@ def labyrinth(folder: Path) -> dict:
     err = pos[usable] - truth[usable, 1:]
     out["multilateration"] = float(np.sqrt(np.mean(np.sum(err ** 2, axis=1))))
     return out
+
+
+def aligned_anchor_errors(result, robot: str = "a") -> np.ndarray:
+    """Distance (m) of each estimated planar anchor to the true one after the rotation and
+    translation in the plane that best align the robot's estimated positions with its true ones
+    (least squares): anchors placed in the anchor frame compared in the world's. This is what
+    `truth: align: se3` does to a planar trajectory, except that no mirror image is allowed (a
+    3-D alignment can mirror planar data by a half-turn about an in-plane axis)."""
+    truth, est = result.truth.trajectories[robot], result.trajectories[robot]
+    m = nearest(truth.t, est.t, 0.01)
+    frame = rigid_fit(est.pose_array()[m.row, :2], truth.pose_array()[m.state, :2])
+    anchors = np.asarray(result.parameters["anchors"]["anchor"].values, float)
+    true = np.asarray(result.truth.calibration["anchors"]["anchor"]["values"], float)
+    return np.linalg.norm(np.array([frame.transformFrom(a) for a in anchors]) - true, axis=1)

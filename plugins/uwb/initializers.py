@@ -10,24 +10,56 @@
 2. Unknown anchors (`unknown:` indices): from those positions and their ranges, the closed-form
    range-origin fit shared with the cable plugins (fusionkit.geometry.fit_range_origin): anchor
    position and its constant bias, which initializes the robot's bias parameter when given.
+3. No anchor known (`unknown` lists them all; planar robot, point2 anchors): the anchors are
+   placed from the line-of-sight ranges alone (survey.place_anchors) and step 1 runs on them; of
+   the placement and its mirror image, the one the robot's own factors fit better after a short
+   solve is kept (wheel odometry knows which way the robot turns). Without anchor priors it is
+   in the anchor frame (anchor 0 at the origin, anchor 1 on +x), held there by gauge priors; with
+   priors it is moved rigidly onto the description's values, whose priors fix the frame. Biases
+   keep their description values.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from fusionkit import Initializer, Spec
-from fusionkit.data.association import nearest
 from fusionkit.geometry import fit_range_origin
 from fusionkit.graph.variables import POINT2, POSE2
 
 from .factors import _range_rows, lever_arm
+from .survey import anchor_frame, gauge_factors, line_of_sight, place_anchors, range_matrix, rigid_fit
 
 NAME = {"type": "string"}
 GN_ITERATIONS = 10
 ROBUST_SCALE = 0.3  # m: ranges this far off count half (Cauchy weights: NLOS outliers hardly pull)
 HEADING_BASELINE = 1.0  # s: planar headings from positions this far apart (not from noisy neighbours)
+GAUGE_SIGMA = 1e-6  # m, rad: the gauge priors of the anchor frame (any value leaves the solution's shape alone)
+MIRROR_MARGIN = 1.0  # the mirror image is told apart when the solved errors (-log likelihood) differ by more
+MIRROR_ITERATIONS = 100  # Levenberg-Marquardt iterations that judge a placement and its mirror image
+
+
+@dataclass
+class _Ranges:
+    """Every range of the stream: time (s), anchor index, range (m)."""
+
+    t: np.ndarray
+    anchor: np.ndarray
+    z: np.ndarray
+
+    def subset(self, mask: np.ndarray) -> "_Ranges":
+        return _Ranges(self.t[mask], self.anchor[mask], self.z[mask])
+
+
+def nearest_index(t_sorted: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """For each time in t, the index of the nearest time in t_sorted (many may share one)."""
+    if len(t_sorted) == 1:
+        return np.zeros(len(t), int)
+    i = np.clip(np.searchsorted(t_sorted, t), 1, len(t_sorted) - 1)
+    return np.where(np.abs(t - t_sorted[i - 1]) <= np.abs(t_sorted[i] - t), i - 1, i)
 
 
 def multilaterate(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.ndarray, ranges: np.ndarray,
@@ -66,7 +98,8 @@ def multilaterate(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.n
 class Multilateration(Initializer):
     name = "uwb.multilateration"
     summary = ("first poses by per-epoch multilateration to the known anchors, unknown anchors (and their "
-               "constant bias) by the closed-form range-origin fit shared with the cable plugins")
+               "constant bias) by the closed-form range-origin fit shared with the cable plugins; with no anchor "
+               "surveyed, anchors placed from the ranges alone, in the anchor frame")
     robot_fields = ("robot", "anchors")
     stream_fields = ("stream",)
     schema = {"type": "object",
@@ -81,6 +114,18 @@ class Multilateration(Initializer):
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot")
+        param = spec.get("anchor_parameter", "anchor")
+        anchors = scope.robots[spec["anchors"]].parameters.get(param)
+        if anchors is None:
+            raise spec.error("anchors", f"robot {spec['anchors']!r} has no parameter {param!r} (the anchor points)")
+        unknown = set(spec.get("unknown", []))
+        if any(i >= anchors.count for i in unknown):
+            raise spec.error("unknown", f"anchor index out of range: there are anchors 0..{anchors.count - 1}")
+        if len(unknown) == anchors.count and (anchors.vartype is not POINT2
+                                              or (scope.states.get(spec["robot"]) or {}).get("type") != "pose2"):
+            raise spec.error("unknown", "every anchor is unknown: placing them from the ranges alone needs a "
+                             "planar robot (states type pose2) and point2 anchors; otherwise leave enough surveyed "
+                             "anchors out of `unknown` to multilaterate the robot from (3 in a plane, 4 in 3-D)")
 
     def initialize(self, ctx, spec: Spec) -> None:
         robot, anchors_robot = spec["robot"], spec["anchors"]
@@ -91,39 +136,113 @@ class Multilateration(Initializer):
         anchors = np.array([np.asarray(ctx.initial.atPoint2(k) if planar_anchors else ctx.initial.atPoint3(k))
                             for k in keys])
         unknown = sorted(set(spec.get("unknown", [])))
-        if any(i >= n for i in unknown):
-            raise spec.error("unknown", f"anchor index out of range: there are anchors 0..{n - 1}")
-        states = ctx.state_set(robot, spec)
-        planar = states.family.vartype is POSE2
-        b = lever_arm(ctx.robot(robot), spec.get("tag"))
         stream = ctx.stream(spec["stream"])
         rows = _range_rows(stream, spec, n)
-        t_r = np.array([stream.t[r] for r, _, _ in rows])
-        ai = np.array([i for _, i, _ in rows])
-        z = np.array([v for _, _, v in rows])
-        known = ~np.isin(ai, unknown)
-        height = float(b[2]) if (planar and not planar_anchors) else None
-        pos, usable = multilaterate(states.t, t_r[known], ai[known], z[known], anchors, spec.get("window", 0.0),
-                                    height)
-        if not usable.any():
-            raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "
-                             "`window` or give more anchors known positions")
-        # states without enough ranges take the nearest usable one
-        fill = nearest(states.t[usable], states.t, np.inf)
-        pos = pos[usable][fill.state[np.argsort(fill.row)]] if not usable.all() else pos
-        self._set_poses(ctx, robot, states, pos, b, planar, spec.get("heading", "travel" if planar else "keep"))
+        ranges = _Ranges(np.array([stream.t[r] for r, _, _ in rows]), np.array([i for _, i, _ in rows], int),
+                         np.array([v for _, _, v in rows]))
+        if len(unknown) == n:
+            self._self_survey(ctx, spec, keys, ranges)
+            return
+        known = ~np.isin(ranges.anchor, unknown)
+        self._place(ctx, spec, anchors, ranges.subset(known), planar_anchors)
         for i in unknown:
-            m = ai == i
-            points = self._tag_points(ctx, robot, states, t_r[m], b, planar, planar_anchors)
-            try:
-                a, c, rms = fit_range_origin(points, z[m])
-            except ValueError as exc:
-                raise spec.error("unknown", f"anchor {i}: {exc}") from None
+            a, c, rms, count = self._fit(ctx, spec, ranges, i, planar_anchors)
             ctx.set_initial(keys[i], a if not planar_anchors else a[:2])
             if "bias" in spec.data:
                 ctx.set_initial(ctx.parameter(robot, spec["bias"], i, 0), c)
             ctx.notes.append(f"{spec.label}: anchor {i} initialized at ({', '.join(f'{x:.3f}' for x in a)}), bias "
-                             f"{c:+.3f} m, fit rms {rms:.3f} m over {int(m.sum())} ranges")
+                             f"{c:+.3f} m, fit rms {rms:.3f} m over {count} ranges")
+
+    def _place(self, ctx, spec: Spec, anchors: np.ndarray, ranges: "_Ranges", planar_anchors: bool) -> None:
+        """Every pose from the ranges to `anchors` (n, d) by per-state multilateration."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        planar = states.family.vartype is POSE2
+        b = lever_arm(ctx.robot(robot), spec.get("tag"))
+        height = float(b[2]) if (planar and not planar_anchors) else None
+        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, spec.get("window", 0.0),
+                                    height)
+        if not usable.any():
+            raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "
+                             "`window` or give more anchors known positions")
+        pos = pos[usable][nearest_index(states.t[usable], states.t)]  # states short of ranges: the nearest usable
+        self._set_poses(ctx, robot, states, pos, b, planar, spec.get("heading", "travel" if planar else "keep"))
+
+    def _fit(self, ctx, spec: Spec, ranges: "_Ranges", i: int, planar_anchors: bool):
+        """Anchor i and its constant bias from its ranges at the current poses: (a, c, rms, count)."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        b = lever_arm(ctx.robot(robot), spec.get("tag"))
+        m = ranges.anchor == i
+        points = self._tag_points(ctx, robot, states, ranges.t[m], b, states.family.vartype is POSE2, planar_anchors)
+        try:
+            a, c, rms = fit_range_origin(points, ranges.z[m])
+        except ValueError as exc:
+            raise spec.error("unknown", f"anchor {i}: {exc}") from None
+        return a, c, rms, int(m.sum())
+
+    def _self_survey(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges") -> None:
+        """No anchor known (planar): place the anchors from the ranges, keep the placement or its
+        mirror image (whichever the robot's factors fit better once solved; when they do not tell,
+        anchor 2 on the +y side), then fix the frame: gauge priors, or the description's priors."""
+        robot, param = spec["robot"], spec.get("anchor_parameter", "anchor")
+        described = ctx.robot(spec["anchors"]).parameters[param]
+        states = ctx.state_set(robot, spec)
+        ranges = ranges.subset(line_of_sight(ranges.t, ranges.anchor, ranges.z))
+        table = range_matrix(states.t, ranges.t, ranges.anchor, ranges.z, len(keys), spec.get("window", 0.0))
+        try:
+            placed, _ = place_anchors(table[~np.isnan(table).any(axis=1)], 2)
+        except ValueError as exc:
+            raise spec.error("unknown", f"every anchor is unknown, so they are placed from the ranges of stream "
+                             f"{spec['stream']!r} alone: {exc}") from None
+        local = self._robot_graph(ctx, robot, spec["anchors"])
+        gauge = gauge_factors(keys[0], keys[1], GAUGE_SIGMA, GAUGE_SIGMA) if described.sigma is None else []
+        for factor in gauge:
+            local.add(factor)
+        nominal = np.array([np.asarray(v, float) for v in described.values]) if described.sigma is not None else None
+        outcomes = [self._survey_candidate(ctx, spec, keys, ranges, placed * [1.0, m], nominal, local)
+                    for m in (1.0, -1.0)]
+        (e0, up0, _), (e1, _, _) = outcomes
+        best = int(e1 < e0) if abs(e1 - e0) > MIRROR_MARGIN else int(not up0)
+        if best == 0:  # the graph's values are the mirror image's, the last one tried
+            self._survey_candidate(ctx, spec, keys, ranges, placed, nominal, local)
+        placed = outcomes[best][2]
+        for factor in gauge:
+            ctx.add_record(factor, f"gauge:{spec['anchors']}/{param}", float("-inf"))
+        if nominal is None:
+            frame = ("the anchor frame (anchor 0 at the origin, anchor 1 on the +x axis), not the world: compare "
+                     "with truth after alignment (truth: align: se3)")
+        else:
+            frame = ("the frame of the description's anchor values (placement moved rigidly onto them; their "
+                     "priors hold it)")
+        ctx.notes.append(f"{spec.label}: no anchor surveyed: {spec['anchors']}/{param} and robot {robot!r} are "
+                         f"placed from the ranges alone, in {frame}")
+        for i, a in enumerate(placed):
+            ctx.notes.append(f"{spec.label}: anchor {i} placed at ({a[0]:.3f}, {a[1]:.3f})")
+
+    def _survey_candidate(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges", anchors: np.ndarray,
+                          nominal: np.ndarray | None, local: gtsam.NonlinearFactorGraph):
+        """Anchors (n, 2) from one placement, moved into the frame (the anchor frame, or onto
+        `nominal`), and the poses multilaterated from them; returns (the error of the robot's
+        factors `local` once solved from there, anchor 2 on the +y side, the anchors)."""
+        frame = anchor_frame(anchors) if nominal is None else rigid_fit(anchors, nominal)
+        anchors = np.array([np.asarray(frame.transformFrom(a)) for a in anchors])
+        for key, a in zip(keys, anchors):
+            ctx.set_initial(key, a)
+        self._place(ctx, spec, anchors, ranges, True)
+        up = bool(anchor_frame(anchors).transformFrom(anchors[2])[1] > 0)
+        settings = gtsam.LevenbergMarquardtParams()
+        settings.setMaxIterations(MIRROR_ITERATIONS)
+        return local.error(gtsam.LevenbergMarquardtOptimizer(local, ctx.initial, settings).optimize()), up, anchors
+
+    @staticmethod
+    def _robot_graph(ctx, robot: str, anchors_robot: str) -> gtsam.NonlinearFactorGraph:
+        """The factors on the robot's and the anchors' variables alone (its ranges, odometry, priors)."""
+        graph = gtsam.NonlinearFactorGraph()
+        for record in ctx.records:
+            if all(ctx.keys.decode(k)[0].robot in (robot, anchors_robot) for k in record.factor.keys()):
+                graph.add(record.factor)
+        return graph
 
     @staticmethod
     def _set_poses(ctx, robot, states, pos, b, planar, heading_mode):
@@ -145,10 +264,8 @@ class Multilateration(Initializer):
     @staticmethod
     def _tag_points(ctx, robot, states, t, b, planar, planar_anchors):
         """Tag positions at the range times (nearest state's current initial pose)."""
-        ks = nearest(states.t, t, np.inf)
-        order = np.argsort(ks.row)
         out = []
-        for k in ks.state[order]:
+        for k in nearest_index(states.t, t):
             if planar:
                 x = ctx.initial.atPose2(ctx.pose_key(robot, int(k)))
                 p = np.asarray(x.transformFrom(b[:2]))

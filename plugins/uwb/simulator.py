@@ -8,7 +8,9 @@ bias starts at N(0, bias_sigma) and drifts as a random walk (`bias_drift`, m/sqr
 `outlier_fraction` > 0, non-line-of-sight bursts (each about `burst_s` long, one anchor) add
 +0.3 to +2 m to that share of the ranges. Two robots (`robots: 2`) also range tag to tag. Anchors
 listed in `unknown_anchors` are off by `anchor_error` (m) in the description (sigma 10 m); the
-others are known to 1 mm and fix the frame.
+others are known to 1 mm and fix the frame. With every anchor listed (a site nobody surveyed) the
+description has no anchor sigma, the estimate is in the anchor frame (anchor 0 at the origin, anchor
+1 on +x: the room below is drawn in it) and the config evaluates after alignment (`align: se3`).
 
 Streams: `ranges_<r>` (t, r0..r{n-1}), `wheels_<r>` (t, v_right, v_left), `bias_<r>` (the true
 biases, t, b0..), `tag_ranges` (two robots); truth: each robot's trajectory and the anchors.
@@ -72,7 +74,8 @@ class UwbSimulator(Simulator):
                              "rate": POSITIVE, "range_sigma": NONNEG, "bias_sigma": NONNEG, "bias_drift": NONNEG,
                              "outlier_fraction": {"type": "number", "minimum": 0, "maximum": 0.5},
                              "burst_s": POSITIVE, "wheel_sigma": NONNEG,
-                             "unknown_anchors": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+                             "unknown_anchors": {"type": "array",
+                                                 "items": {"type": "integer", "minimum": 0, "maximum": len(ROOM) - 1}},
                              "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
                              "bias_model": {"enum": ["none", "constant", "time_varying"]}},
               "additionalProperties": False}
@@ -137,9 +140,11 @@ class UwbSimulator(Simulator):
         for i in p["unknown_anchors"]:
             nominal[i] += rng.normal(0.0, p["anchor_error"] / np.sqrt(2), 2)
             sigma[i] = [10.0, 10.0]
+        anchor = {"type": "point2", "values": nominal.round(4).tolist(), "sigma": sigma}
+        if _unsurveyed(p):
+            del anchor["sigma"]  # no survey: the values are placeholders the initializer replaces
         out = {ANCHORS: {"name": ANCHORS, "summary": "UWB anchors at the corners of a 10 x 8 m room (m)",
-                         "parameters": {"anchor": {"type": "point2", "values": nominal.round(4).tolist(),
-                                                   "sigma": sigma}}}}
+                         "parameters": {"anchor": anchor}}}
         for r in ROBOT_NAMES[:p["robots"]]:
             desc = {"name": r, "summary": "differential-drive robot with a UWB tag",
                     "sensors": {"tag": {"type": "uwb_tag", "frame": "base",
@@ -190,7 +195,16 @@ class UwbSimulator(Simulator):
         if p["robots"] == 2:
             factors.append({"type": "uwb.tag_range", "robot": "a", "other": "b", "stream": "tag_ranges",
                             "tag": "tag", "other_tag": "tag", "sigma": max(p["range_sigma"], 1e-3)})
-        return {"robots": robots, "factors": factors, "initializers": inits, "solver": {"type": "batch", "method": "lm"}}
+        config = {"robots": robots, "factors": factors, "initializers": inits,
+                  "solver": {"type": "batch", "method": "lm"}}
+        if _unsurveyed(p):
+            config["truth"] = {"align": "se3"}  # the anchor frame is not the world's: compare after alignment
+        return config
+
+
+def _unsurveyed(p: dict) -> bool:
+    """Every anchor unknown: no survey fixes the frame."""
+    return set(p["unknown_anchors"]) >= set(range(len(ROOM)))
 
 
 SIMULATORS = [UwbSimulator]

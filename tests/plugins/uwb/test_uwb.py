@@ -27,12 +27,26 @@ def models():
 
 
 def test_time_varying_bias_model_wins_when_the_bias_drifts(models):
-    """Measured (2 seeds, 60 s at 10 Hz, bias 0.15 m drifting 0.03 m/sqrt(s)): position 0.25 /
+    """Self-consistency (estimator noise = simulator noise). Measured (2 seeds, 60 s at 10 Hz, bias
+    0.15 m drifting 0.03 m/sqrt(s)): position 0.25 /
     0.14 / 0.077 m and bias 0.21 / 0.12 / 0.056 m for none / constant / time-varying."""
     none, const, varying = models["none"], models["constant"], models["time_varying"]
     assert varying["position_m"] < const["position_m"] < none["position_m"]
     assert varying["bias_m"] < const["bias_m"] < none["bias_m"]
     assert varying["position_m"] < 0.1 and varying["bias_m"] < 0.08
+
+
+@pytest.mark.parametrize("noise", [{"uwb.range": 0.5}, {"uwb.range": 2.0},
+                                   {"parameter.random_walk": 0.5, "odometry.diff_drive": 2.0}],
+                         ids=["range_x0.5", "range_x2", "drift_x0.5_odometry_x2"])
+def test_bias_model_ranking_holds_with_misstated_noise(noise):
+    """The test above is a self-consistency check (the estimator uses the simulator's noise
+    levels); the ranking must not depend on that. Measured (seed 0) position none / constant /
+    time-varying: range sigma x0.5 0.223 / 0.130 / 0.081 m, x2 0.227 / 0.126 / 0.074 m, drift x0.5
+    with odometry x2 0.229 / 0.130 / 0.092 m: each model at most 0.71 times the next worse one."""
+    m = bias_models(range(1), noise=noise)
+    assert m["time_varying"]["position_m"] < 0.8 * m["constant"]["position_m"]
+    assert m["constant"]["position_m"] < 0.8 * m["none"]["position_m"]
 
 
 def test_robust_kernel_holds_the_error_under_ten_percent_outliers():
