@@ -110,7 +110,7 @@ def csv_dataset(ds: Path, text: str | None = None, columns: list[str] | None = N
     return ds / "config.yaml"
 
 
-def test_the_simulated_dataset_is_good(ds, out, capsys):
+def test_the_simulated_dataset_validates_and_runs_also_with_csv_mocap(ds, out, capsys):
     """The baseline the other tests break: it validates and runs."""
     assert main(["validate", str(ds / "config.yaml")]) == 0
     assert "  stream mocap: 3 samples" in capsys.readouterr().out
@@ -123,12 +123,12 @@ def test_the_simulated_dataset_is_good(ds, out, capsys):
 # ---------------------------------------------------------------- 1. missing or unreadable files
 
 
-def test_missing_config(tmp_path, out, capsys):
+def test_missing_config_says_file_not_found(tmp_path, out, capsys):
     config = tmp_path / "nope.yaml"
     assert fails(capsys, run(config, out), out=out) == f"{config}: file not found"
 
 
-def test_config_that_is_a_folder_or_not_text(tmp_path, out, capsys):
+def test_config_that_is_a_folder_or_not_text_says_why_it_cannot_be_read(tmp_path, out, capsys):
     (tmp_path / "folder.yaml").mkdir()
     message = fails(capsys, run(tmp_path / "folder.yaml", out), out=out)
     assert message.startswith(f"{tmp_path / 'folder.yaml'}: cannot read file (IsADirectoryError")
@@ -137,7 +137,7 @@ def test_config_that_is_a_folder_or_not_text(tmp_path, out, capsys):
     assert message.startswith(f"{tmp_path / 'binary.yaml'}: cannot read file (UnicodeDecodeError")
 
 
-def test_config_without_read_permission(tmp_path, out, capsys, monkeypatch):
+def test_config_without_read_permission_says_permission_denied(tmp_path, out, capsys, monkeypatch):
     config = scaled_vo_copy(tmp_path)
     original = pathlib.Path.read_text
 
@@ -151,21 +151,21 @@ def test_config_without_read_permission(tmp_path, out, capsys, monkeypatch):
         f"{config}: cannot read file (PermissionError: [Errno 13] Permission denied: '{config}')"
 
 
-def test_missing_robot_description(ds, out, capsys):
+def test_missing_robot_description_is_located_at_its_config_line(ds, out, capsys):
     config = rewrite(ds / "config.yaml", "robots/cam.yaml", "robots/camera.yaml")
     line = line_of(config, "description:")
     assert fails(capsys, run(config, out), out=out) == (
         f"{config}:{line}: robots.cam.description: robot description file not found: {ds / 'robots' / 'camera.yaml'}")
 
 
-def test_missing_data_file(ds, out, capsys):
+def test_missing_data_file_is_located_at_its_config_line(ds, out, capsys):
     config = rewrite(ds / "config.yaml", "path: data/mocap.tum", "path: data/mocap2.tum")
     line = line_of(config, "path: data/mocap2.tum")
     assert fails(capsys, run(config, out), out=out) == \
         f"{config}:{line}: sources[1].path: file not found: {ds / 'data' / 'mocap2.tum'}"
 
 
-def test_data_file_that_is_not_text(ds, out, capsys):
+def test_data_file_that_is_not_text_names_its_line_and_byte(ds, out, capsys):
     (ds / "data" / "vo.tum").write_bytes(b"# t x y z qx qy qz qw\n0 0 0 0 0 0 0 1\n\xff\xfe\n")
     assert fails(capsys, run(ds / "config.yaml", out), out=out) == \
         f"{ds / 'data' / 'vo.tum'}:3: cannot read: byte 38 is not UTF-8 text; expected a text file"
@@ -175,7 +175,7 @@ def test_data_file_that_is_not_text(ds, out, capsys):
     ("truth.trajectories.cam", "cam: truth/cam.tum", "cam: truth/camera.tum"),
     ("truth.calibration", "calibration: truth/calibration.yaml", "calibration: truth/cal.yaml"),
 ])
-def test_missing_truth_file(ds, out, capsys, key, old, new):
+def test_missing_truth_file_is_located_at_its_config_line(ds, out, capsys, key, old, new):
     config = rewrite(ds / "config.yaml", old, new)
     line = line_of(config, new)
     missing = ds / new.split(": ")[1]
@@ -190,7 +190,7 @@ def test_validate_reports_missing_files_too(ds, capsys):
 # ---------------------------------------------------------------- 2. YAML syntax errors
 
 
-def test_yaml_syntax_error_in_config(tmp_path, out, capsys):
+def test_yaml_syntax_error_in_config_names_its_line(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "solver: {type: batch, method: lm}", "solver: {type: batch, method: lm")
     line = len(config.read_text().splitlines()) + 1  # the flow mapping is still open at the end of the file
@@ -198,7 +198,7 @@ def test_yaml_syntax_error_in_config(tmp_path, out, capsys):
         f"{config}:{line}: YAML syntax error: expected ',' or '}}', but got '<stream end>'"
 
 
-def test_yaml_bad_indentation_in_config(tmp_path, out, capsys):
+def test_yaml_bad_indentation_in_config_names_its_line(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "    states: {stream: vo}", "   states: {stream: vo}")
     line = line_of(config, "   states: {stream: vo}")
@@ -206,7 +206,7 @@ def test_yaml_bad_indentation_in_config(tmp_path, out, capsys):
     assert message.startswith(f"{config}:{line}: YAML syntax error: ")
 
 
-def test_yaml_syntax_error_in_robot_description(ds, out, capsys):
+def test_yaml_syntax_error_in_robot_description_names_its_line(ds, out, capsys):
     robot = rewrite(ds / "robots" / "cam.yaml", "vo_scale:", "vo_scale: [")
     # `type: scalar` still parses as a one-pair mapping inside the flow list; the next key is the error
     line = line_of(robot, "value: 1.0")
@@ -214,7 +214,7 @@ def test_yaml_syntax_error_in_robot_description(ds, out, capsys):
         f"{robot}:{line}: YAML syntax error: expected ',' or ']', but got ':'"
 
 
-def test_duplicate_key(tmp_path, out, capsys):
+def test_duplicate_key_names_both_lines(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "seed: 7", "seed: 7\n    seed: 8")
     first, second = line_of(config, "seed: 7"), line_of(config, "seed: 8")
@@ -226,7 +226,7 @@ def test_duplicate_key(tmp_path, out, capsys):
 # ---------------------------------------------------------------- 3. unknown keys and plugin types
 
 
-def test_unknown_top_level_key(tmp_path, out, capsys):
+def test_unknown_top_level_key_lists_the_accepted_keys(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "solver: {", "solvr: {")
     assert fails(capsys, run(config, out), out=out) == (
@@ -234,7 +234,7 @@ def test_unknown_top_level_key(tmp_path, out, capsys):
         "name, output, robots, seed, solver, sources, truth")
 
 
-def test_unknown_factor_key(tmp_path, out, capsys):
+def test_unknown_factor_key_lists_the_accepted_keys(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "    sensor: marker\n", "    sensor: marker\n    sigmaa: 1\n")
     assert fails(capsys, run(config, out), out=out) == (
@@ -242,7 +242,7 @@ def test_unknown_factor_key(tmp_path, out, capsys):
         "robot, robust, sensor, sigma, stream, tolerance, type")
 
 
-def test_unknown_key_in_robot_description(ds, out, capsys):
+def test_unknown_key_in_robot_description_lists_the_accepted_keys(ds, out, capsys):
     robot = rewrite(ds / "robots" / "cam.yaml", "frames:", "framez:")
     assert fails(capsys, run(ds / "config.yaml", out), out=out) == (
         f"{robot}:{line_of(robot, 'framez')}: framez: unknown key 'framez'; accepted keys: frames, model, name, "
@@ -267,7 +267,7 @@ def test_unknown_plugin_type_lists_installed(tmp_path, out, capsys, old, new, ke
         assert name in message
 
 
-def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
+def test_unknown_scenario_and_robot_model_list_the_installed_ones(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "scenario: pose.scaled_vo", "scenario: pose.scaled")
     message = fails(capsys, run(config, out), out=out)
@@ -283,7 +283,7 @@ def test_unknown_scenario_and_robot_model(tmp_path, out, capsys):
     assert "generic" in message.split("installed: ")[1].removesuffix(" (see `fusionkit plugins`)").split(", ")
 
 
-def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
+def test_simulate_bad_scenario_or_parameter_says_what_is_accepted(tmp_path, capsys):
     target = tmp_path / "sim"
     message = fails(capsys, ["simulate", "pose.nope", "--out", str(target)], out=target)
     assert message.startswith("unknown scenario 'pose.nope'; installed: cable.cdpr, cable.sag_static, "
@@ -312,13 +312,13 @@ def test_simulate_unknown_scenario_and_parameter(tmp_path, capsys):
     ("duration: 25.0", "duration: ten", "sources[0].params.duration", "got 'ten'; expected a number > 0"),
     ("seed: 7", "seed: 7.5", "sources[0].seed", "got 7.5; expected an integer"),
 ])
-def test_mistyped_parameter(tmp_path, out, capsys, old, new, key, what):
+def test_mistyped_parameter_says_what_is_expected_at_its_line(tmp_path, out, capsys, old, new, key, what):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, old, new)
     assert fails(capsys, run(config, out), out=out) == f"{config}:{line_of(config, new)}: {key}: {what}"
 
 
-def test_missing_sigma(tmp_path, out, capsys):
+def test_missing_sigma_names_the_factor_line_and_the_expected_keys(tmp_path, out, capsys):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, "    sigma: {rotation: 0.01, translation: 0.01}\n", "")
     line = line_of(config, "type: pose.absolute")
@@ -340,7 +340,7 @@ def test_missing_sigma(tmp_path, out, capsys):
     ("translation: [0.0, 0.0, 0.05]", "translation: [0.0, 0.05]", "translation: [0.0, 0.05]",
      "sensors.marker.mount.translation", "got [0.0, 0.05]; expected a list of 3 numbers"),
 ])
-def test_mistyped_robot_parameter(tmp_path, out, capsys, old, new, at, key, what):
+def test_mistyped_robot_parameter_says_what_is_expected_at_its_line(tmp_path, out, capsys, old, new, at, key, what):
     config = scaled_vo_copy(tmp_path)
     robot = rewrite(tmp_path / "robots" / "handheld_camera.yaml", old, new)
     shown = tmp_path / "configs" / ".." / "robots" / "handheld_camera.yaml"  # as the config spells it
@@ -357,7 +357,7 @@ def test_mistyped_robot_parameter(tmp_path, out, capsys, old, new, at, key, what
     ("anchor: mocap, scale: vo_scale}\n  - {type: pose.dead", "anchor: mocap, scale: scale}\n  - {type: pose.dead",
      "scale: scale}", "initializers[0].scale", "robot 'cam' has no parameter 'scale'; it has: vo_scale"),
 ])
-def test_references_to_unknown_names(tmp_path, out, capsys, old, new, at, key, what):
+def test_references_to_unknown_names_list_the_defined_ones(tmp_path, out, capsys, old, new, at, key, what):
     config = scaled_vo_copy(tmp_path)
     rewrite(config, old, new)
     assert fails(capsys, run(config, out), out=out) == f"{config}:{line_of(config, at)}: {key}: {what}"
@@ -376,7 +376,7 @@ def test_references_to_unknown_names(tmp_path, out, capsys, old, new, at, key, w
     ("solver.type=[isam2", "--set 'solver.type=[isam2': value is not valid YAML"),
     ("name.first=x", "--set name.first: parent is not a mapping or list"),
 ])
-def test_bad_override_paths(out, capsys, assignment, message):
+def test_bad_override_paths_say_why_the_path_is_invalid(out, capsys, assignment, message):
     assert fails(capsys, run(SCALED_VO, out, *FAST, "--set", assignment), out=out) == message
 
 
@@ -412,7 +412,7 @@ def test_bad_refine_settings_are_located(out, capsys, refine, key, what):
 # ---------------------------------------------------------------- 5. CSV and TUM data
 
 
-def test_csv_with_wrong_columns_for_the_factor(ds, out, capsys):
+def test_csv_with_wrong_columns_for_the_factor_names_the_missing_column(ds, out, capsys):
     config = csv_dataset(ds)
     rewrite(ds / "data" / "mocap.csv", "t,x,y,z,qx,qy,qz,qw", "t,x,y,z,qx,qy,qz,w")
     # the factor needs pose columns: the stream's columns are known from the CSV header before reading data
@@ -421,7 +421,7 @@ def test_csv_with_wrong_columns_for_the_factor(ds, out, capsys):
         "data/mocap.csv) lacks column(s) qw; it has x, y, z, qx, qy, qz, w")
 
 
-def test_csv_missing_declared_columns(ds, out, capsys):
+def test_csv_missing_declared_columns_are_named_at_the_header_line(ds, out, capsys):
     config = csv_dataset(ds, "t,x,y,z,qx,qy,qz,w\n0,0,0,0,0,0,0,1\n",
                          columns=["x", "y", "z", "qx", "qy", "qz", "qw"])
     csv = ds / "data" / "mocap.csv"
@@ -429,14 +429,14 @@ def test_csv_missing_declared_columns(ds, out, capsys):
         f"{csv}:1: missing column(s) qw; header has t,x,y,z,qx,qy,qz,w, expected at least t,x,y,z,qx,qy,qz,qw")
 
 
-def test_csv_first_column_not_t(ds, out, capsys):
+def test_csv_first_column_not_t_is_refused_at_the_header_line(ds, out, capsys):
     config = csv_dataset(ds, "# exported\ntime,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
     assert fails(capsys, run(config, out), out=out) == (
         f"{ds / 'data' / 'mocap.csv'}:2: first column is 'time'; expected 't' (time in seconds), "
         "header was time,x,y,z,qx,qy,qz,qw")
 
 
-def test_csv_with_nan(ds, out, capsys):
+def test_csv_with_nan_counts_the_rows_and_names_the_first_line(ds, out, capsys):
     config = csv_dataset(ds, "t,x,y,z,qx,qy,qz,qw\n# motion capture\n0,0,0,0,0,0,0,1\n2,nan,0,0,0,0,0,1\n"
                              "4,0,0,NaN,0,0,0,1\n")
     assert fails(capsys, run(config, out), out=out) == (
@@ -444,7 +444,7 @@ def test_csv_with_nan(ds, out, capsys):
         "expected finite numbers")
 
 
-def test_csv_with_non_increasing_timestamps(ds, out, capsys):
+def test_csv_non_increasing_timestamps_count_the_rows_and_name_the_first_line(ds, out, capsys):
     config = csv_dataset(ds, "t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n2,0,0,0,0,0,0,1\n\n2,0,0,0,0,0,0,1\n"
                              "1,0,0,0,0,0,0,1\n")
     assert fails(capsys, run(config, out), out=out) == (
@@ -452,13 +452,13 @@ def test_csv_with_non_increasing_timestamps(ds, out, capsys):
         "expected strictly increasing t in seconds")
 
 
-def test_csv_with_text_in_a_number_column(ds, out, capsys):
+def test_csv_text_in_a_number_column_names_line_column_and_value(ds, out, capsys):
     config = csv_dataset(ds, "t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n2,0,0,1.2.3,0,0,0,1\n")
     assert fails(capsys, run(config, out), out=out) == \
         f"{ds / 'data' / 'mocap.csv'}:3: column 'z' has '1.2.3'; expected a number"
 
 
-def test_tum_with_non_increasing_timestamps(ds, out, capsys):
+def test_tum_non_increasing_timestamps_count_the_rows_and_name_the_first_line(ds, out, capsys):
     vo = ds / "data" / "vo.tum"
     lines = vo.read_text().splitlines()
     lines[10] = "0.05" + lines[10][lines[10].index(" "):]  # line 11 goes back in time
@@ -468,7 +468,7 @@ def test_tum_with_non_increasing_timestamps(ds, out, capsys):
         "increasing t in seconds")
 
 
-def test_tum_with_missing_field(ds, out, capsys):
+def test_tum_with_missing_field_names_the_line_and_the_field_count(ds, out, capsys):
     mocap = ds / "data" / "mocap.tum"
     lines = mocap.read_text().splitlines()
     lines[2] = " ".join(lines[2].split()[:7])
@@ -477,7 +477,7 @@ def test_tum_with_missing_field(ds, out, capsys):
         f"{mocap}:3: 7 fields; expected 8 (t x y z qx qy qz qw)"
 
 
-def test_truth_trajectory_with_nan(ds, out, capsys):
+def test_truth_trajectory_with_nan_counts_the_rows_and_names_the_first_line(ds, out, capsys):
     truth = ds / "truth" / "cam.tum"
     lines = truth.read_text().splitlines()
     for i in (5, 6, 7):
@@ -553,7 +553,7 @@ def rejected(capsys, argv: list[str], out: Path) -> str:
     return lines[0][len(PREFIX):-len(suffix)]
 
 
-def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
+def test_overconfident_sigmas_are_rejected_at_chi2_over_100_naming_the_top_factor(out, capsys):
     tiny = [f"factors.{i}.sigma.{axis}=1e-4" for i in (0, 1) for axis in ("rotation", "translation")]
     message = rejected(capsys, run(SCALED_VO, out, *FAST, *[arg for s in tiny for arg in ("--set", s)]), out)
     assert message.startswith(f"{SCALED_VO}: the solver stopped with a large residual: chi-square per degree of "
@@ -565,7 +565,7 @@ def test_overconfident_sigmas_stop_with_a_large_residual(out, capsys):
     assert message.endswith("check the sigmas, the data association, or the initial values")
 
 
-def test_max_cost_ratio_is_the_limit(out, capsys):
+def test_max_cost_ratio_0_5_rejects_a_run_below_10_and_reports_its_sigma0(out, capsys):
     message = rejected(capsys, run(SCALED_VO, out, *FAST, "--set", "solver.max_cost_ratio=0.5"), out)
     assert "the limit is solver.max_cost_ratio=0.5)" in message
     ratio = float(message.split("chi-square per degree of freedom ")[1].split(" ")[0])
@@ -598,7 +598,7 @@ def test_library_estimate_raises_on_a_rejected_solution():
     (10.0, float("inf"), "the solver diverged: the cost became non-finite; check initial values and sigmas"),
     (10.0, 25.0, "the solver diverged: cost rose from 10 to 25"),
 ])
-def test_divergence_is_reported(initial, final, message):
+def test_non_finite_or_rising_cost_raises_solver_diverged(initial, final, message):
     with pytest.raises(SolverError) as err:
         check_solution(None, None, None, initial, final, 10.0)
     assert str(err.value) == message
@@ -645,13 +645,13 @@ def _one_error_line(proc: subprocess.CompletedProcess) -> str:
     return lines[0][len(PREFIX):]
 
 
-def test_subprocess_missing_config(tmp_path):
+def test_subprocess_missing_config_is_one_line_and_creates_nothing(tmp_path):
     proc = _cli("run", "missing.yaml", "--out", "result", cwd=tmp_path)
     assert _one_error_line(proc) == "missing.yaml: file not found"
     assert list(tmp_path.iterdir()) == []
 
 
-def test_subprocess_csv_with_nan(ds, tmp_path):
+def test_subprocess_csv_with_infinity_is_one_line_and_creates_nothing(ds, tmp_path):
     csv_dataset(ds, "t,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n2,0,0,0,0,0,0,inf\n")
     proc = _cli("run", "ds/config.yaml", "--out", "result", cwd=tmp_path)
     assert _one_error_line(proc) == (f"{ds / 'data' / 'mocap.csv'}:3: 1 row(s) contain NaN or infinite values "
@@ -659,7 +659,7 @@ def test_subprocess_csv_with_nan(ds, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
 
 
-def test_subprocess_unconstrained_and_debug_traceback(tmp_path):
+def test_subprocess_unconstrained_is_one_line_and_debug_shows_the_traceback(tmp_path):
     config = _odometry_only(tmp_path)
     proc = _cli("run", str(config), "--out", "result", cwd=tmp_path)
     assert _one_error_line(proc).startswith(f"{config}: {UNCONSTRAINED}")
@@ -694,7 +694,7 @@ def test_every_pose_sigma_of_every_factor_type_is_the_one_schema():
                 assert sub == POSE_SIGMA_SCHEMA, (name, key)
 
 
-def test_simulator_noise_override_keeps_the_default_of_the_other_key(tmp_path, capsys):
+def test_simulator_noise_override_of_one_key_runs_and_a_negative_one_is_refused(tmp_path, capsys):
     folder = tmp_path / "sim"
     assert main(["simulate", "pose.scaled_vo", "--out", str(folder), "--set", "duration=2",
                  "--set", "vo_sigma.rotation=0.004"]) == 0

@@ -37,7 +37,7 @@ def test_validate_scaled_vo_prints_stream_and_factor_counts(capsys):
     assert "  151 variables, 153 factors; every variable is constrained" in lines
 
 
-def test_validate_full_scaled_vo(capsys):
+def test_validate_full_scaled_vo_counts_750_vo_samples_and_751_variables(capsys):
     assert main(["validate", str(SCALED_VO)]) == 0
     out = capsys.readouterr().out
     assert "  stream vo: 750 samples, t = 0.000 .. 24.967 s" in out
@@ -45,7 +45,7 @@ def test_validate_full_scaled_vo(capsys):
     assert "  751 variables, 763 factors; every variable is constrained" in out
 
 
-def test_run_scaled_vo_writes_outputs(tmp_path, capsys):
+def test_run_scaled_vo_writes_the_outputs_and_recovers_the_scale_within_0_5(tmp_path, capsys):
     out = tmp_path / "result"
     assert main(["run", str(SCALED_VO), *FAST, "--out", str(out), "--no-plots"]) == 0
     captured = capsys.readouterr()
@@ -72,7 +72,7 @@ def test_run_scaled_vo_writes_outputs(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("solver, name", [("isam2", "isam2"), ("batch", "batch-gn")])
-def test_run_with_solver_overrides(tmp_path, capsys, solver, name):
+def test_solver_type_override_selects_the_solver_and_recovers_the_scale_within_0_5(tmp_path, capsys, solver, name):
     out = tmp_path / "o"
     extra = ["--set", "solver.method=gn"] if name == "batch-gn" else []
     assert main(["run", str(SCALED_VO), *FAST, "--set", f"solver.type={solver}", *extra, "--out", str(out),
@@ -82,7 +82,7 @@ def test_run_with_solver_overrides(tmp_path, capsys, solver, name):
     assert abs(report["parameters"]["cam"]["vo_scale"]["value"] - 2.5) < 0.5
 
 
-def test_set_changes_a_factor_sigma(tmp_path, capsys):
+def test_set_looser_vo_rotation_sigma_lowers_the_final_cost(tmp_path, capsys):
     """A looser VO rotation sigma (0.01 instead of 0.002) gives a smaller final cost on the same data."""
     costs = []
     for sigma in ("0.002", "0.01"):
@@ -104,7 +104,7 @@ def test_plugins_lists_what_is_installed(capsys):
         assert any(line.split()[:len(kind.split()) + 1] == [*kind.split(), name] for line in lines), (kind, name)
 
 
-def test_plugins_json(capsys):
+def test_plugins_json_lists_sources_with_summary_and_schema_and_every_builtin_name(capsys):
     assert main(["plugins", "--json"]) == 0
     listing = json.loads(capsys.readouterr().out)
     sources = {item["name"]: item for item in listing["fusionkit.data.builtin_sources"]["sources"]}
@@ -116,7 +116,7 @@ def test_plugins_json(capsys):
             "pose.scaled_vo"} <= names
 
 
-def test_simulate_writes_a_dataset_whose_config_recovers_the_scale(tmp_path, capsys):
+def test_simulate_writes_a_dataset_whose_config_recovers_the_scale_within_3_sigma(tmp_path, capsys):
     data = tmp_path / "sim"
     assert main(["simulate", "pose.scaled_vo", "--out", str(data)]) == 0
     out = capsys.readouterr().out
@@ -143,7 +143,7 @@ def test_simulate_writes_a_dataset_whose_config_recovers_the_scale(tmp_path, cap
     assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.1
 
 
-def test_simulate_with_parameters_and_seed(tmp_path, capsys):
+def test_simulate_set_duration_13_rate_10_gives_130_frames_and_mocap_every_6_s(tmp_path, capsys):
     data = tmp_path / "sim"
     assert main(["simulate", "pose.scaled_vo", "--out", str(data), "--seed", "3", "--set", "duration=13",
                  "--set", "rate=10"]) == 0
@@ -162,7 +162,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
                           cwd=cwd, env=env, timeout=300, check=False)
 
 
-def test_subprocess_validate_and_run(tmp_path):
+def test_subprocess_validate_and_run_exit_0_silently_and_write_to_out_config_name(tmp_path):
     proc = _cli("validate", str(SCALED_VO), *FAST, cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr == ""
     assert "151 variables, 153 factors; every variable is constrained" in proc.stdout
@@ -216,8 +216,11 @@ def test_status_line_shows_the_stage_and_iterations_once_work_takes_long(monkeyp
     with fusionkit.progress.StatusLine(Console(file=stream, force_terminal=True, width=100)) as status:
         status.stage("quick")  # over before the line appears: nothing is shown
         status.stage("solving (batch)")
-        time.sleep(0.3)
+        waited = 0.0
+        while not status._started and waited < 10:  # the line appears after SHOW_AFTER_S, however loaded
+            time.sleep(0.05)
+            waited += 0.05
         status(3, 12.5)
-        time.sleep(0.3)
+        time.sleep(0.3)  # rich redraws the line a few times a second
     shown = stream.getvalue()
     assert "solving (batch): iteration 3, cost 12.5" in shown and "quick" not in shown

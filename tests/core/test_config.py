@@ -33,13 +33,13 @@ def test_parse_yaml_records_the_line_of_every_key_and_item():
     assert str(doc.error(("factors", 0, "sigma"), "bad")) == "c.yaml:4: factors[0].sigma: bad"
 
 
-def test_yaml_1_2_floats():
+def test_yaml_1_2_exponent_floats_load_as_numbers_and_quoted_ones_as_text():
     doc = parse_yaml("a: 1e-6\nb: 2E3\nc: .5\nd: 1_000\ne: '1e-6'\n")
     assert doc.data == {"a": 1e-6, "b": 2000.0, "c": 0.5, "d": 1000, "e": "1e-6"}
     assert isinstance(doc.data["a"], float) and isinstance(doc.data["d"], int)
 
 
-def test_format_path():
+def test_format_path_writes_list_indices_in_brackets():
     assert format_path(("factors", 1, "params", "sigma")) == "factors[1].params.sigma"
     assert format_path((0, "a")) == "[0].a"
     assert format_path(()) == ""
@@ -67,7 +67,7 @@ def test_duplicate_keys_are_errors_not_silently_overwritten():
     assert doc.data["a"] == {"x": 1, "y": 2} and doc.data["b"] == {"x": 1, "y": 3}
 
 
-def test_load_yaml_missing_folder_and_non_utf8(tmp_path):
+def test_load_yaml_refuses_missing_folder_and_non_utf8_files_and_reads_empty_as_empty(tmp_path):
     with pytest.raises(ConfigError) as err:
         load_yaml(tmp_path / "none.yaml")
     assert str(err.value) == f"{tmp_path / 'none.yaml'}: file not found"
@@ -130,7 +130,7 @@ def test_missing_required_key_says_what_it_expects():
                         "(each a mapping with keys type))")
 
 
-def test_one_of_required_keys_and_list_lengths():
+def test_one_of_required_keys_and_list_lengths_say_what_is_needed():
     schema = {"type": "object", "properties": {"p": {"oneOf": [{"required": ["value"]}, {"required": ["values"]}],
                                                      "type": "object"},
                                                "mount": {"type": "array", "items": {"type": "number"},
@@ -141,7 +141,7 @@ def test_one_of_required_keys_and_list_lengths():
     assert str(_schema_error(schema, "mount: [0, 0.05]\n")) == "c.yaml:1: mount: got [0, 0.05]; expected a list of 3 numbers"
 
 
-def test_expected_describes_schemas():
+def test_expected_describes_each_schema_in_words():
     assert expected({"type": "number", "exclusiveMinimum": 0}) == "a number > 0"
     assert expected({"type": "integer", "minimum": 1, "maximum": 9}) == "an integer >= 1 and <= 9"
     assert expected({"type": ["number", "array", "null"]}) == "a number, a list or null"
@@ -153,7 +153,7 @@ def test_expected_describes_schemas():
 # ---------------------------------------------------------------- --set overrides
 
 
-def test_parse_key_path():
+def test_parse_key_path_accepts_dots_and_brackets_and_refuses_empty_keys():
     assert parse_key_path("factors.1.params.sigma") == ("factors", 1, "params", "sigma")
     assert parse_key_path("factors[1].sigma") == ("factors", 1, "sigma")
     with pytest.raises(ConfigError, match=r"--set 'a\.\.b': empty key in path \(expected e\.g\. solver\.type=isam2\)"):
@@ -192,7 +192,7 @@ def test_apply_override_sets_parses_and_creates():
     ("name.x=1", "--set name.x: parent is not a mapping or list"),
     ("name.x.y=1", "--set name.x.y: 'x' is not inside a mapping"),
 ])
-def test_apply_override_errors(assignment, message):
+def test_apply_override_errors_say_why_the_path_or_value_is_invalid(assignment, message):
     with pytest.raises(ConfigError) as err:
         apply_override({"name": "q", "factors": [{}], "empty": []}, assignment)
     assert str(err.value) == message
@@ -257,7 +257,7 @@ def test_robot_description_unknown_key_lists_all_accepted_keys(tmp_path):
                               "parameters, sensors, summary")
 
 
-def test_truth_file_that_is_a_folder(tmp_path):
+def test_truth_file_that_is_a_folder_is_refused_naming_the_set(tmp_path):
     config = _copy_scaled_vo(tmp_path)
     (tmp_path / "configs" / "truth.tum").mkdir()
     with pytest.raises(ConfigError) as err:
@@ -266,6 +266,6 @@ def test_truth_file_that_is_a_folder(tmp_path):
                               "expected a file (from --set truth.trajectories.cam=truth.tum)")
 
 
-def test_document_error_without_line_or_path():
+def test_document_error_without_line_or_path_names_only_the_file():
     doc = Document({}, Path("x.yaml"))
     assert str(doc.error((), "expected a mapping")) == "x.yaml: expected a mapping"

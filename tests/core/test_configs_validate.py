@@ -12,11 +12,11 @@ from fusionkit.cli.main import main
 CONFIGS = sorted((Path(__file__).resolve().parents[2] / "configs").glob("*.yaml"))
 
 
-def test_there_are_configs():
+def test_there_are_at_least_6_configs():
     assert len(CONFIGS) >= 6
 
 
 @pytest.mark.parametrize("config", CONFIGS, ids=[p.stem for p in CONFIGS])
-def test_config_validates(config, capsys):
+def test_every_shipped_config_validates_ok(config, capsys):
     assert main(["validate", str(config)]) == 0
     assert f"{config.name}: OK" in capsys.readouterr().out

@@ -23,7 +23,7 @@ def verdict(z: np.ndarray) -> dict:
     return sigma_check(z, percent)
 
 
-def test_effective_samples_of_independent_shared_and_autoregressive_errors():
+def test_effective_samples_are_n_for_independent_1_for_shared_and_ar1_formula_errors():
     rng = np.random.default_rng(0)
     assert effective_samples(rng.standard_normal(2000)) == pytest.approx(2000, rel=0.1)
     assert effective_samples(np.full(500, 0.7)) == 1.0  # one error shared by every state

@@ -25,7 +25,7 @@ def test_every_builtin_factor_type_is_registered():
 
 
 @pytest.mark.parametrize("name", FACTOR_TYPES)
-def test_factor_contract(name):
+def test_every_installed_factor_type_meets_the_contract(name):
     check_factor_contract(registry().get("factor_types", name))
 
 
@@ -96,7 +96,7 @@ def test_a_residual_of_the_wrong_size_is_caught():
         check_factor_example(FactorExample(factor, _values(1.0)), "short")
 
 
-def test_the_class_level_check_runs_each_seed():
+def test_class_level_check_names_the_factor_type_and_the_seed_that_failed():
     """`check_factor_contract` takes a FactorType class and names it and the seed on failure."""
 
     class BrokenPose(FactorType):

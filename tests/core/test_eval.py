@@ -27,7 +27,7 @@ def test_ate_of_constant_offset_equals_offset_and_vanishes_after_se3_alignment()
     assert trajectory_errors(moved, truth, align="se3")["ate_rmse_m"] < 1e-9
 
 
-def test_sim3_alignment_recovers_scale():
+def test_sim3_alignment_recovers_a_scale_of_2_5_and_zero_ate():
     t, poses = _circle()
     truth = pose_stream("truth", t, poses)
     arr = pose_array_from(poses)
@@ -37,7 +37,7 @@ def test_sim3_alignment_recovers_scale():
     assert abs(out["alignment_scale"] - 2.5) < 1e-9
 
 
-def test_rpe_of_a_step_error():
+def test_rpe_of_one_10_cm_step_is_its_share_of_49_steps():
     t, poses = _circle(50)
     truth = pose_stream("truth", t, poses)
     arr = pose_array_from(poses)
@@ -48,7 +48,7 @@ def test_rpe_of_a_step_error():
     assert out["rpe_rotation_rmse_deg"] < 1e-6
 
 
-def test_consistency_of_gaussian_errors_matches_theory():
+def test_gaussian_errors_fall_within_1_2_3_sigma_at_68_95_99_7_percent():
     rng = np.random.default_rng(0)
     sigma = rng.uniform(0.01, 0.1, size=(20000, 3))
     truth = rng.normal(size=(20000, 3))

@@ -84,7 +84,7 @@ def test_installed_as_a_distribution_with_entry_point(installed):
     assert "altimeter" not in {ep.name for ep in importlib.metadata.entry_points(group="fusionkit")}
 
 
-def test_plugins_lists_the_example(installed):
+def test_plugins_json_lists_the_example_factor_and_simulator_with_summaries(installed):
     proc = run([*_fusionkit_cmd(), "plugins", "--json"], installed)
     assert proc.returncode == 0, proc.stderr
     listing = json.loads(proc.stdout)
@@ -147,14 +147,14 @@ def test_contract_passes_and_a_broken_jacobian_is_caught(installed):
     ("factors.2.bias=nope", "factors[2].bias: robot 'drone' has no parameter 'nope'"),
     ("factors.2.stream=gnss", "factors[2].stream: stream 'gnss' (sources[0]) lacks column(s) height"),
 ])
-def test_check_errors_are_located(installed, override, message):
+def test_plugin_check_errors_are_one_line_located_in_the_demo_config(installed, override, message):
     proc = run([*_fusionkit_cmd(), "validate", str(DEMO), "--set", override], installed)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert message in proc.stderr and f"{DEMO}:" in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
 
 
-def test_demo_estimates_the_bias(installed):
+def test_demo_estimates_the_bias_within_3_sigma_and_3_cm(installed):
     out = installed["root"] / "out"
     proc = run([*_fusionkit_cmd(), "run", str(DEMO), "--out", str(out)], installed)
     assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
@@ -176,7 +176,7 @@ def test_demo_estimates_the_bias(installed):
     assert (out / "trajectories" / "drone.tum").is_file()
 
 
-def test_simulated_dataset_from_files(installed):
+def test_simulated_csv_dataset_runs_and_recovers_the_bias_within_5_cm(installed):
     """`fusionkit simulate altimeter.demo` writes the altimeter as a stream CSV (t,height) with a
     runnable config: the factor works from files as well as in-process data."""
     sim, out = installed["root"] / "sim", installed["root"] / "sim_out"
@@ -192,7 +192,7 @@ def test_simulated_dataset_from_files(installed):
 
 def test_the_plugins_own_tests_pass(installed):
     """examples/fusionkit-altimeter/tests, run against the installed package (but its end-to-end
-    demo, which test_demo_estimates_the_bias covers through the command line)."""
+    demo, which test_demo_estimates_the_bias_within_3_sigma_and_3_cm covers through the command line)."""
     proc = run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-k", "not demo",
                 str(installed["root"] / "src" / "tests")], installed)
     assert proc.returncode == 0, proc.stdout[-3000:]

@@ -55,7 +55,7 @@ def test_csv_first_column_must_be_t(tmp_path):
     assert str(err.value) == f"{path}:1: first column is 'time'; expected 't' (time in seconds), header was time,x"
 
 
-def test_csv_repeated_or_empty_column_names(tmp_path):
+def test_csv_repeated_or_empty_column_names_are_named_at_the_header_line(tmp_path):
     path = write(tmp_path, "a.csv", "t,x,x,\n0,1,2,3\n")
     with pytest.raises(DataError) as err:
         read_csv_stream(path, "a")
@@ -102,7 +102,7 @@ def test_csv_non_increasing_timestamps_count_and_first_line(tmp_path):
     ("# only a comment\n\n", "empty file; expected a header row starting with 't'"),
     ("t,x\n", "no samples (expected at least one data row)"),
 ])
-def test_csv_without_data(tmp_path, text, message):
+def test_csv_without_data_rows_says_empty_file_or_no_samples(tmp_path, text, message):
     path = write(tmp_path, "a.csv", text)
     with pytest.raises(DataError) as err:
         read_csv_stream(path, "a")
@@ -123,7 +123,7 @@ def test_unreadable_files_say_what_is_wrong(tmp_path):
     assert str(err.value) == f"{path}:2: cannot read: byte 4 is not UTF-8 text; expected a text file"
 
 
-def test_csv_header_alone(tmp_path):
+def test_csv_header_is_read_without_the_rows_and_its_errors_are_located(tmp_path):
     path = write(tmp_path, "a.csv", "\ufeff# exported by a logger\n\n t , ax,ay\n0,1\n".encode("utf-8"))
     assert read_csv_header(path) == ("ax", "ay")  # data rows are not read (the short row is not noticed)
     path = write(tmp_path, "b.csv", "# c\nx,y\n")
@@ -143,7 +143,7 @@ def test_csv_header_alone(tmp_path):
     assert str(err.value) == f"{tmp_path / 'none.csv'}: file not found"
 
 
-def test_csv_round_trip(tmp_path):
+def test_csv_round_trip_gives_back_the_exact_times_and_values(tmp_path):
     s = Stream("odom", np.array([0.0, 0.1, 0.2]), ("v", "w"), np.array([[1.0, -0.5], [1.25, 0.0], [2e-7, 3.0]]))
     write_csv_stream(tmp_path / "odom.csv", s)
     assert (tmp_path / "odom.csv").read_text().splitlines()[0] == "t,v,w"
@@ -185,14 +185,14 @@ def test_tum_errors_name_the_physical_line(tmp_path, body, line, message):
     assert str(err.value) == f"{path}:{line}: {message}"
 
 
-def test_tum_without_poses(tmp_path):
+def test_tum_without_poses_says_no_poses(tmp_path):
     path = write(tmp_path, "empty.tum", "# nothing here\n\n")
     with pytest.raises(DataError) as err:
         read_tum(path, "e")
     assert str(err.value) == f"{path}: no poses; expected lines 't x y z qx qy qz qw'"
 
 
-def test_tum_round_trip(tmp_path):
+def test_tum_round_trip_gives_back_times_and_poses_to_1e_9(tmp_path):
     arr = np.array([[0.5, -1.0, 2.0, 0, 0, 0, 1], [1.5, -2.0, 2.5, 0, 0, SQRT_HALF, SQRT_HALF]])
     s = Stream("p", np.array([10.0, 10.5]), POSE_COLUMNS, arr)
     write_tum(tmp_path / "p.tum", s)
@@ -216,7 +216,7 @@ def test_check_samples_uses_given_line_numbers_else_first_line():
     check_samples(np.array([0.0, 0.5]), np.array([[1.0], [2.0]]), "ok")  # no error
 
 
-def test_stream_constructor_rejects_bad_samples():
+def test_stream_constructor_rejects_a_nan_sample_naming_its_row():
     with pytest.raises(DataError, match=r"^gps:2: 1 row\(s\) contain NaN"):
         Stream("gps", [0.0, 1.0], ("x",), [[0.0], [np.nan]])
 
@@ -239,7 +239,7 @@ def test_nearest_pairs_each_state_with_its_closest_sample_within_tolerance():
     assert wide.unmatched == 1
 
 
-def test_nearest_with_one_state_and_samples_outside_the_state_span():
+def test_nearest_with_one_state_or_samples_outside_the_span_matches_within_tolerance():
     a = nearest(np.array([5.0]), np.array([4.8, 5.05, 7.0]), tolerance=0.1)
     np.testing.assert_array_equal(a.state, [0])
     np.testing.assert_array_equal(a.row, [1])
@@ -277,7 +277,7 @@ def test_interpolate_poses_drops_queries_across_a_gap():
     np.testing.assert_allclose(out[:, 0], [0.5, 1.0, 3.0, 4.5], atol=1e-12)
 
 
-def test_interpolate_poses_single_sample():
+def test_interpolate_poses_with_a_single_sample_answers_only_at_its_time():
     poses = np.array([[1, 2, 3, 0, 0, 0, 1]], dtype=float)
     inside, out = interpolate_poses(np.array([2.0]), poses, np.array([1.0, 2.0, 3.0]))
     np.testing.assert_array_equal(inside, [False, True, False])

@@ -22,7 +22,7 @@ def test_exact_ranges_give_the_origin_and_offset():
     assert np.abs(a - PULLEY).max() < 1e-9 and abs(c - OFFSET) < 1e-9 and rms < 1e-9
 
 
-def test_noisy_ranges_are_fit_to_the_noise_level():
+def test_noisy_ranges_at_1_mm_fit_the_origin_within_1_cm_and_rms_at_the_noise():
     rng = np.random.default_rng(1)
     q = rng.uniform(-1, 1, (750, 3)) + [0, 0, 1.3]
     a, c, rms = fit_range_origin(q, _ranges(q, 0.001, rng))

@@ -19,7 +19,7 @@ def _corrupt_mocap(folder, share=0.1, jump=0.8, seed=1):
     return len(bad)
 
 
-def test_huber_kernel_holds_the_estimate_against_outliers(tmp_path):
+def test_huber_keeps_the_ate_within_1_3x_clean_under_outliers_that_triple_least_squares(tmp_path):
     folder = tmp_path / "sim"
     write_dataset("pose.scaled_vo", folder, ["duration=15", "mocap_every=10"], seed=4)
     config = folder / "config.yaml"

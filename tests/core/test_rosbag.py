@@ -106,7 +106,7 @@ def bag(request, tmp_path: Path) -> Path:
     return write_bag(bag_path(tmp_path, request.param), request.param)
 
 
-def test_topic_columns(bag: Path) -> None:
+def test_topic_columns_name_the_fields_of_each_message_type(bag: Path) -> None:
     cols = topic_columns(bag, ["/mocap", "/odom", "/imu", "/joints"])
     assert cols == {"/mocap": ("x", "y", "z", "qx", "qy", "qz", "qw"),
                     "/odom": ("x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz", "wx", "wy", "wz"),
@@ -114,7 +114,7 @@ def test_topic_columns(bag: Path) -> None:
                     "/joints": ("shoulder", "elbow", "v_shoulder", "v_elbow")}
 
 
-def test_read_bag_exact_values(bag: Path) -> None:
+def test_read_bag_gives_the_exact_values_at_the_header_stamps(bag: Path) -> None:
     s = read_bag(bag, {"/mocap": "mocap", "/odom": "odom", "/imu": "imu", "/joints": "joints"})
     assert set(s) == {"mocap", "odom", "imu", "joints"}
     for stream in s.values():
@@ -130,7 +130,7 @@ def test_read_bag_exact_values(bag: Path) -> None:
 
 
 @pytest.mark.parametrize("ros", [1, 2])
-def test_other_pose_messages_and_joints_without_velocity(tmp_path: Path, ros: int) -> None:
+def test_other_pose_messages_and_joints_without_velocity_read_exactly(tmp_path: Path, ros: int) -> None:
     topics = {"/pwc": "geometry_msgs/msg/PoseWithCovarianceStamped", "/tf": "geometry_msgs/msg/TransformStamped",
               "/joints": JOINT_TYPE}
 
@@ -198,7 +198,7 @@ def test_zero_quaternion_and_nan_are_errors(tmp_path: Path, ros: int) -> None:
 
 
 @pytest.mark.parametrize("ros", [1, 2])
-def test_joint_names_must_not_change(tmp_path: Path, ros: int) -> None:
+def test_changed_joint_names_are_an_error_naming_the_message(tmp_path: Path, ros: int) -> None:
     def edit(topic, k, m):
         if k == 7:
             return m.T[JOINT_TYPE](header=m.header(k), name=["elbow", "shoulder"], position=JPOS[k].copy(),
@@ -210,7 +210,7 @@ def test_joint_names_must_not_change(tmp_path: Path, ros: int) -> None:
         read_bag(path, {"/joints": "joints"})
 
 
-def test_missing_and_unsupported_topics(bag: Path) -> None:
+def test_missing_and_unsupported_topics_are_errors_listing_what_is_there(bag: Path) -> None:
     with pytest.raises(DataError) as exc:
         topic_columns(bag, ["/mocap", "/vicon"])
     msg = str(exc.value)
@@ -224,7 +224,7 @@ def test_missing_and_unsupported_topics(bag: Path) -> None:
     assert all(t in msg for t in (POSE_TYPE, ODOM_TYPE, IMU_TYPE, JOINT_TYPE))
 
 
-def test_unreadable_bag(tmp_path: Path) -> None:
+def test_unreadable_bag_file_or_folder_says_it_cannot_be_opened(tmp_path: Path) -> None:
     bad = tmp_path / "broken.bag"
     bad.write_bytes(b"not a bag at all")
     with pytest.raises(DataError, match=r"broken\.bag: cannot open as a ROS 1 \.bag file or ROS 2 bag folder"):
@@ -270,7 +270,7 @@ def write_config(folder: Path, bag: Path, mocap_topic: str = "/mocap") -> Path:
 
 
 @pytest.mark.parametrize("ros", [1, 2])
-def test_config_run_recovers_bag_poses(tmp_path: Path, ros: int) -> None:
+def test_config_run_recovers_the_bag_poses_to_1e_6_with_odometry_in_its_own_frame(tmp_path: Path, ros: int) -> None:
     """Mocap gives world poses; odometry the same motion in its own frame (only increments agree)."""
     odom_frame = gtsam.Pose3(gtsam.Rot3.Ypr(0.7, 0.1, -0.2), np.array([5.0, -2.0, 1.0]))
     odom_poses = pose_array_from([odom_frame.compose(p) for p in poses_from_array(POSES)])
@@ -297,7 +297,7 @@ def test_config_run_recovers_bag_poses(tmp_path: Path, ros: int) -> None:
     np.testing.assert_allclose(arr[:, 3:], QUAT, atol=1e-6)
 
 
-def test_validate_cli(bag: Path, capsys) -> None:
+def test_validate_lists_the_bag_streams_and_the_joint_columns(bag: Path, capsys) -> None:
     cfg = write_config(bag.parent, bag)
     assert main(["validate", str(cfg)]) == 0
     out = capsys.readouterr().out
@@ -309,7 +309,8 @@ def test_validate_cli(bag: Path, capsys) -> None:
     ("/status", ["'/status' has message type std_msgs/msg/String, which is not supported; supported types: ",
                  POSE_TYPE, JOINT_TYPE]),
 ])
-def test_validate_cli_bag_errors(bag: Path, capsys, topic: str, expected: list[str]) -> None:
+def test_validate_bag_topic_errors_are_one_line_naming_the_bag(bag: Path, capsys, topic: str,
+                                                              expected: list[str]) -> None:
     cfg = write_config(bag.parent, bag, mocap_topic=topic)
     assert main(["validate", str(cfg)]) == 2
     err = capsys.readouterr().err

@@ -22,7 +22,7 @@ def _empty_folders(root: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
-def test_simulated_config_validates(scenario, tmp_path, capsys):
+def test_simulated_config_validates_fully_constrained_leaving_no_empty_folder(scenario, tmp_path, capsys):
     out = tmp_path / "data"
     assert main(["simulate", scenario, "--out", str(out)]) == 0
     assert f"run it with: fusionkit run {out / 'config.yaml'}" in capsys.readouterr().out
@@ -45,7 +45,7 @@ class ConfiglessSimulator(Simulator):
         return SourceOutput({"level": Stream("level", t, ("value",), np.ones((5, 1)), "simulated:level")}, {}, {})
 
 
-def test_scenario_without_config_says_so(tmp_path, capsys, monkeypatch):
+def test_scenario_without_config_says_so_and_writes_no_config_robots_or_truth(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(registry().components["simulators"], ConfiglessSimulator.name, ConfiglessSimulator)
     out = tmp_path / "data"
     assert main(["simulate", ConfiglessSimulator.name, "--out", str(out)]) == 0

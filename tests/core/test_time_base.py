@@ -98,7 +98,7 @@ def test_csv_times_in_nanoseconds_are_refused_at_the_first_data_line(tmp_path):
 @pytest.mark.parametrize("t", [1.7e9 + np.arange(100) * 0.01,       # Unix time in s, 100 Hz
                                np.arange(10) * 3600.0,              # one sample an hour
                                np.array([5.0])])                    # a single pose
-def test_times_in_seconds_are_read(tmp_path, t):
+def test_times_in_seconds_unix_hourly_or_single_are_read_unchanged(tmp_path, t):
     path = tmp_path / "ok.tum"
     path.write_text(tum_text(t, "{:.3f}"))
     np.testing.assert_allclose(read_tum(path, "ok").t, t, rtol=0, atol=1e-3)

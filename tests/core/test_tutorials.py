@@ -124,7 +124,7 @@ def check_multirobot(out: Path) -> None:
 
 
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
-def test_tutorial_runs(md: Path, tmp_path: Path) -> None:
+def test_tutorial_runs_as_typed_and_its_estimates_meet_their_error_bounds(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
     run_tutorial(md, tmp_path)
     if md.stem == "scaled_vo":

@@ -41,7 +41,7 @@ def quickstart():
     return _run("quickstart.yaml")
 
 
-def test_quickstart_self_calibrates_from_no_prior_values(quickstart):
+def test_quickstart_self_calibrates_scale_within_0_005_pulleys_6_cm_ate_1_cm(quickstart):
     """Measured (seed 7): scale 2.0009 +- 0.0036 (truth 2), pulleys 3-4 cm, offsets 2-4 cm, ATE 4.4 mm."""
     ev = quickstart.evaluation
     assert ev["parameters"]["cdpr"]["vo_scale"]["abs_error"][0] < 0.005
@@ -54,7 +54,7 @@ def test_quickstart_self_calibrates_from_no_prior_values(quickstart):
     assert sum("observable (rank 6/6" in v for v in verdicts) == 4
 
 
-def test_mocap_and_lengths_give_pulleys_to_millimetres():
+def test_mocap_and_lengths_give_pulleys_and_offsets_within_5_mm_and_3_sigma():
     """Measured (seed 11): pulleys 1.1-3.5 mm, offsets 0.4-3.4 mm, all within 1.5 sigma; the
     closed-form initializer alone is within 1 cm, and LM needs 3 iterations."""
     r = _run("cable_mocap_lengths.yaml")
@@ -66,7 +66,7 @@ def test_mocap_and_lengths_give_pulleys_to_millimetres():
     assert np.all((sigma > 0.0005) & (sigma < 0.005))
 
 
-def test_rigid_cables_under_mocap_show_the_stretch_bias(tmp_path):
+def test_rigid_cables_under_mocap_bias_the_pulley_z_beyond_2_5_sigma(tmp_path):
     """Without the tensions the rigid model absorbs the 1-2 mm stretch into the pulleys: the
     z errors exceed 2.5 sigma (measured: up to 3.1), which is why the config uses eq. 4.2."""
     r = estimate(fusionkit.load_config(_rigid_copy(tmp_path)))

@@ -20,7 +20,7 @@ def table(request):
     return request.param, table_4_1(request.param, SEEDS)
 
 
-def test_fusion_beats_kinematics_and_vo_alone(table):
+def test_fusion_beats_fk_by_10_and_vo_by_60_percent_within_2_cm(table):
     """Source: fused 23-25% better than FK and 72% better than VO. Measured over 30 seeds:
     dynamic FK 1.7 / VO 10.2 / fused 1.2 cm, smooth 0.9 / 4.1 / 0.7 cm."""
     motion, r = table
@@ -30,7 +30,7 @@ def test_fusion_beats_kinematics_and_vo_alone(table):
     assert r["errors_m"]["fused"] < 0.02
 
 
-def test_cable_residual_drops_by_more_than_the_source(table):
+def test_cable_residual_drops_over_10x_beyond_the_source_to_under_1_2_mm(table):
     """Source: 0.043 -> 0.0049 m (8.8x). Measured: 55 -> 0.6 mm dynamic, 22 -> 0.8 mm smooth."""
     _, r = table
     before, after = r["cable_residual_m"]
@@ -38,7 +38,7 @@ def test_cable_residual_drops_by_more_than_the_source(table):
     assert before / after > 10
 
 
-def test_position_sigmas_are_consistent(table):
+def test_position_sigmas_pooled_over_seeds_are_within_15_points_of_68_percent(table):
     """Pooled over 3 seeds (the errors of one run are correlated in time, so one run alone says
     little; 30 seeds in the benchmark are within 5 points of 68/95/99.7 on every axis)."""
     _, r = table
@@ -49,7 +49,7 @@ def test_position_sigmas_are_consistent(table):
     assert 0.3 < r["scale_z_rms"] < 2.0
 
 
-def test_pseudo_measurements_sharpen_the_pulley_geometry():
+def test_pseudo_measurements_halve_the_pulley_shape_error_to_under_5_mm():
     """Coplanarity + 4 taped distances (3 mm): the pulley geometry (after rigid alignment) improves
     about 5x (measured 1.0 -> 0.2 cm); the placement in the zero pose's frame, which they do not
     touch, improves less (3.4 -> 2.8 cm)."""
@@ -70,7 +70,7 @@ def test_shape_error_ignores_rigid_motion():
     assert 0.01 < shape_error(bent, pts) < 0.1
 
 
-def test_fixed_lag_with_warmup_tracks_like_batch():
+def test_fixed_lag_with_warmup_tracks_within_1_3x_batch_ate_and_1_percent_scale():
     """Warm-up over the calibration motion (14 s), then a 1 s window: each frame is one bounded
     update (benchmark: p99 about 4 ms at 30 Hz), the trajectory within 30% of batch's error."""
     batch = run_sequence("dynamic", 0)
@@ -92,7 +92,7 @@ def lengths_at(pos, rot):
     return np.linalg.norm(PULLEYS[None] - pos[:, None] - np.einsum("kij,cj->kci", rot, ATTACH), axis=2)
 
 
-def test_forward_kinematics_recovers_positions():
+def test_forward_kinematics_recovers_positions_to_1e_9_given_the_orientation():
     rng = np.random.default_rng(1)
     pos = rng.uniform([-1.2, -0.9, 0.8], [1.2, 0.9, 2.0], (200, 3))
     from scipy.spatial.transform import Rotation

@@ -40,7 +40,7 @@ def rng():
 
 
 # --- the linear system ---------------------------------------------------------------------------
-def test_3d_motion_full_rank_and_exact_recovery(rng):
+def test_3d_motion_gives_full_rank_and_recovers_pulleys_and_offsets_to_1e_10(rng):
     t, R = trajectory(rng, 300, [0.5, 0.5, 0.5])
     for i in range(4):
         sys = lifted_system(t, lengths(t, R, i), R @ ATTACH[i])
@@ -58,7 +58,7 @@ def test_3d_motion_full_rank_and_exact_recovery(rng):
         assert re.fullmatch(rf"cable {i}: observable \(rank 5/5, condition 3\.\de1\)", verdict(i, r))
 
 
-def test_unknown_scale_recovers_scale_pulley_offset(rng):
+def test_unknown_scale_gives_rank_6_and_recovers_scale_pulley_and_offset_to_1e_9(rng):
     """VO translations up to the scale s (eq. 4.3), constant orientation: six unknowns, exact."""
     t, _ = trajectory(rng, 300, [0.5, 0.5, 0.5])
     R = np.tile(Rotation.from_rotvec([0.05, -0.02, 0.3]).as_matrix(), (300, 1, 1))
@@ -73,7 +73,7 @@ def test_unknown_scale_recovers_scale_pulley_offset(rng):
     assert sol["offset"] == pytest.approx(OFFSETS[2], abs=1e-9)
 
 
-def test_elastic_cable_recovery_with_varying_and_constant_tension(rng):
+def test_elastic_cable_is_recovered_exactly_and_weak_tension_variation_is_named(rng):
     t, R = trajectory(rng, 300, [0.5, 0.5, 0.5])
     for tension in (rng.uniform(10, 60, 300), np.full(300, 30.0)):
         alpha = 1 - tension / 2.0e4

@@ -54,7 +54,7 @@ def model_lengths(geo: Geometry, pos: np.ndarray, rot: np.ndarray) -> np.ndarray
 
 
 # ------------------------------------------------------------------------------------- the streams
-def test_streams_columns_and_truth(smooth):
+def test_streams_have_750_samples_their_columns_and_truth_pulleys_5_cm_off_nominal(smooth):
     params, out = smooth
     assert set(out.streams) == set(SIM.stream_columns(params)) == {"vo", "lengths", "tensions", "mocap"}
     for name, cols in SIM.stream_columns(params).items():
@@ -71,7 +71,7 @@ def test_streams_columns_and_truth(smooth):
 
 
 @pytest.mark.parametrize("robot", ["arascam", "cdpr_small"])
-def test_encoders_match_the_model_at_truth(robot):
+def test_encoders_match_the_model_at_truth_to_their_noise_within_20_percent(robot):
     """z_i = (1 - T_i/EA) l*_i + l0_i + noise (arascam, EA = 2e4 N) or l*_i + l0_i + noise
     (cdpr_small, no stiffness): residual std within 20% of encoder_sigma (measured: -0.5%)."""
     params, out = simulate(robot=robot)
@@ -125,7 +125,7 @@ def vo_increment_errors(vo, truth, scale: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("motion", ["smooth", "dynamic"])
-def test_vo_increments_times_scale_match_the_truth(motion, smooth, dynamic):
+def test_vo_increments_times_scale_match_the_truth_to_their_sigma_within_10_percent(motion, smooth, dynamic):
     params, out = smooth if motion == "smooth" else dynamic
     vo, truth = out.streams["vo"], out.truth_trajectories["cdpr"]
     assert vo.pose_array()[0] == pytest.approx([0, 0, 0, 0, 0, 0, 1])  # VO's own frame
@@ -141,7 +141,7 @@ def test_vo_increments_times_scale_match_the_truth(motion, smooth, dynamic):
     assert length[1] / length[0] == pytest.approx(params["scale"], rel=0.07 if motion == "smooth" else 0.2)
 
 
-def test_mocap_is_the_noisy_true_pose(smooth):
+def test_mocap_is_the_true_pose_with_its_sigmas_within_10_percent(smooth):
     params, out = smooth
     mocap, truth = out.streams["mocap"].poses(), out.truth_trajectories["cdpr"].poses()
     err = np.array([gtsam.Pose3.Logmap(t.between(m)) for t, m in zip(truth, mocap)])
@@ -252,7 +252,7 @@ def run_written(folder, *sets: str):
         args += ["--set", s]
     assert main(args) == 0
     written = sorted(str(p.relative_to(data)) for p in data.rglob("*") if p.is_file())
-    assert written == ["config.yaml", "data/lengths.csv", "data/mocap.tum", "data/tensions.csv", "data/vo.tum",
+    assert written == [".fusionkit-output", "config.yaml", "data/lengths.csv", "data/mocap.tum", "data/tensions.csv", "data/vo.tum",
                        "robots/cdpr.yaml", "truth/calibration.yaml", "truth/cdpr.tum"]
     result = fusionkit.run(data / "config.yaml")
     est = result.parameters["cdpr"]
@@ -262,7 +262,7 @@ def run_written(folder, *sets: str):
     return result, pulley_error, scale_z
 
 
-def test_written_config_recovers_pulleys_and_scale(tmp_path, capsys):
+def test_written_config_recovers_pulleys_within_5_cm_and_the_scale_within_3_sigma(tmp_path, capsys):
     """VO 0.5 mrad / 0.25 VO units (0.5 mm) per frame: pulleys within 5 cm (the config's rigid cable
     factor ignores the ~1.5 mm elastic stretch), scale within 3 sigma."""
     result, pulley_error, scale_z = run_written(tmp_path, "vo_sigma={rotation: 0.0005, translation: 0.00025}")
@@ -281,7 +281,7 @@ def default_run(tmp_path_factory):
     return run_written(tmp_path_factory.mktemp("cdpr_default"))
 
 
-def test_written_config_at_default_noise(default_run):
+def test_written_config_at_default_noise_tracks_within_1_5_cm_and_pulleys_12_cm(default_run):
     """VO 1 mrad / 0.5 VO units (1 mm) per frame, Monte-Carlo start: pulleys within 12 cm
     (measured 2-8 cm, mean over 30 seeds 4 cm), trajectory within 1.5 cm (measured 0.5-1 cm)."""
     result, pulley_error, _ = default_run

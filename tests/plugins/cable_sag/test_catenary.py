@@ -14,7 +14,7 @@ W_LARGE, W_SMALL = 0.7100703, 0.1034955  # N/m
 @pytest.mark.parametrize("H, V, L, w", [(600.0, 70.0, 150.0, W_LARGE), (20.0, 10.0, 8.0, W_SMALL),
                                         (500.0, 900.0, 1.0, W_LARGE), (5.0, 5.0, 10.0, W_SMALL),
                                         (800.0, -40.0, 120.0, W_LARGE)])
-def test_equals_the_printed_equations(H, V, L, w):
+def test_equals_the_printed_equations_to_1e_11_in_length_and_1e_9_in_rise(H, V, L, w):
     length, rise = catenary(H, V, L, w)
     z_pulley = 48.0
     length_spec, z_end = catenary_spec_form(H, V, L, w, z_pulley)
@@ -46,7 +46,7 @@ def test_stays_finite_beyond_any_physical_cable():
     assert np.isfinite(length) and np.isfinite(rise) and length > 1e100
 
 
-def test_massless_and_vertical_limits():
+def test_massless_limit_is_the_straight_cable_and_vertical_length_is_the_rise():
     """w -> 0: the straight cable (l = L T0 / H, rise = L V / H); near-vertical: l -> rise."""
     H, V, L = 500.0, 300.0, 100.0
     length, rise = catenary(H, V, L, 1e-12)
@@ -70,7 +70,7 @@ def test_jacobians_match_central_differences(H, V, L, w):
         assert d_rise[j] == pytest.approx(numeric[1], rel=1e-6, abs=1e-9)
 
 
-def test_vectorized_over_cables():
+def test_vectorized_over_cables_equals_one_cable_at_a_time():
     H, V, L = np.array([600.0, 700.0]), np.array([70.0, 90.0]), np.array([150.0, 160.0])
     length, rise = catenary(H, V, L, W_LARGE)
     for i in range(2):

@@ -55,7 +55,7 @@ def test_forces_balance_the_weight():
 
 @pytest.mark.parametrize("robot, pulleys, t", [(*LARGE, [10.0, -7.0, 5.0]), (*SMALL, [0.4, -1.5, -8.0])],
                          ids=["large", "small"])
-def test_forward_recovers_the_inverse(robot, pulleys, t):
+def test_forward_recovers_the_inverse_pose_to_1e_8_and_forces_to_1e_6(robot, pulleys, t):
     pose = inverse_pose(np.array(t), pulleys, robot, yaw=0.01)
     guess_t = pose.t + [0.3, -0.2, 0.1]
     back = forward_pose(pose.state.length, pulleys, robot, np.eye(3), guess_t)
@@ -81,7 +81,7 @@ def test_chain_converges_to_the_catenary_at_second_order():
 
 @pytest.mark.parametrize("robot, pulleys, t", [(*LARGE, [10.0, -7.0, 5.0]), (*SMALL, [0.4, -1.5, -8.0])],
                          ids=["large", "small"])
-def test_lumped_mass_robot_agrees_with_the_catenary_simulator(robot, pulleys, t):
+def test_lumped_mass_robot_agrees_with_the_catenary_simulator_to_1e_6(robot, pulleys, t):
     """The whole robot with 2000-link chains, solved by a general root finder from a guess 0.5 m
     and 5 % off: pose within 1e-6 m, tensions within 1e-6 (measured 2e-7 m, 8e-8)."""
     pose = inverse_pose(np.array(t), pulleys, robot, yaw=0.01)

@@ -27,7 +27,7 @@ def base_transform(result):
     return est.values[0], est.sigma[0], truth
 
 
-def test_the_problem_links_two_namespaced_robots(runs):
+def test_the_problem_links_two_robots_of_300_states_by_60_co_registrations(runs):
     problem = runs["batch"].problem
     assert {n: len(s) for n, s in problem.states.items()} == {"a": 300, "b": 300}  # 30 s at 10 Hz
     labels = [r.label for r in problem.records]
@@ -40,7 +40,7 @@ def test_the_problem_links_two_namespaced_robots(runs):
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_both_trajectories_against_truth(runs, solver):
+def test_both_trajectories_track_within_5_cm_for_a_and_12_cm_for_b(runs, solver):
     ev = runs[solver].evaluation["trajectories"]
     # measured: a 3.3 cm (motion capture every 2.5 s), b 7.3 cm (only seen by a)
     assert ev["a"]["matched_poses"] == ev["b"]["matched_poses"] == 300
@@ -49,7 +49,7 @@ def test_both_trajectories_against_truth(runs, solver):
     assert ev["a"]["rpe_rotation_rmse_deg"] < 0.5 and ev["b"]["rpe_rotation_rmse_deg"] < 0.5
 
 
-def test_robot_b_is_better_than_its_dead_reckoning(runs):
+def test_robot_b_halves_the_error_of_its_dead_reckoning(runs):
     """Odometry alone drifts; a's observations (anchored by motion capture) correct b."""
     result = runs["batch"]
     from fusionkit.eval.trajectory import trajectory_errors
@@ -60,7 +60,7 @@ def test_robot_b_is_better_than_its_dead_reckoning(runs):
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
-def test_base_transform_against_truth(runs, solver):
+def test_base_transform_within_6_cm_1_deg_and_3_sigma_of_truth(runs, solver):
     est, sigma, truth = base_transform(runs[solver])
     translation_error = np.linalg.norm(est.translation() - truth.translation())
     rotation_error = np.degrees(np.linalg.norm(truth.rotation().logmap(est.rotation())))
@@ -73,7 +73,7 @@ def test_base_transform_against_truth(runs, solver):
     assert np.all(sigma[:3] < np.radians(1.0)) and np.all(sigma[3:] < 0.05)
 
 
-def test_isam2_agrees_with_batch(runs):
+def test_isam2_agrees_with_batch_to_1_mm_and_1_percent_in_sigma(runs):
     (est_b, sig_b, _), (est_i, sig_i, _) = base_transform(runs["batch"]), base_transform(runs["isam2"])
     assert np.abs(POSE3.local(est_b, est_i)).max() < 1e-3
     np.testing.assert_allclose(sig_i, sig_b, rtol=0.01)

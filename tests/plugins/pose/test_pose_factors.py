@@ -116,7 +116,7 @@ def mocap_problem(workspace):
     return problem_of(workspace, robots, sources, factors), rows
 
 
-def test_absolute_pose_of_a_mounted_marker(mocap_problem):
+def test_absolute_pose_of_a_mounted_marker_has_the_hand_computed_residual(mocap_problem):
     problem, rows = mocap_problem
     factors = factors_of(problem, "with_mount")
     assert [problem.keys.name_of(f.keys()[0]) for f in factors] == [f"r/pose[{k}]" for k in rows]
@@ -145,7 +145,7 @@ def test_the_mount_maps_the_marker_pose_to_the_body_pose(mocap_problem):
         np.testing.assert_allclose(marker.rotation().matrix(), R @ rpy_matrix(MOUNT_RPY), atol=EXACT)
 
 
-def test_mounted_marker_run_recovers_the_body_trajectory(workspace):
+def test_mounted_marker_run_recovers_the_body_trajectory_to_1e_6(workspace):
     """End to end on noise-free data: odometry + mocap of a marker with a lever arm give the
     body trajectory (not the marker's) to numerical precision."""
     rows = np.arange(0, N, 5)
@@ -166,7 +166,7 @@ def test_mounted_marker_run_recovers_the_body_trajectory(workspace):
         assert np.abs(POSE3.local(q, p)).max() < 1e-6
 
 
-def test_planar_absolute_pose_of_a_mounted_marker(workspace):
+def test_planar_mounted_marker_residual_vanishes_at_truth_with_x_y_theta_sigmas(workspace):
     """Pose2 states: the body pose (x, y, yaw) from the marker pose and its lever arm."""
     yaw = 0.4 + 0.3 * T
     body = [gtsam.Pose3(gtsam.Rot3.Yaw(a), np.array([np.cos(a), np.sin(a), 0.0])) for a in yaw]
@@ -191,7 +191,7 @@ def test_planar_absolute_pose_of_a_mounted_marker(workspace):
 
 # --- pose.origin -----------------------------------------------------------------------------------
 
-def test_origin_prior_on_the_first_pose(workspace):
+def test_origin_prior_initializes_the_first_pose_and_has_the_hand_computed_residual(workspace):
     start = [1.0, 2.0, 3.0, 0.0, 0.0, float(np.sin(0.25)), float(np.cos(0.25))]  # yaw 0.5 rad
     problem = problem_of(workspace, {"r": {"description": describe(), "states": {"stream": "clock"}}},
                          [workspace.poses("clock", T, TRUTH)],
@@ -214,7 +214,7 @@ def odometry_of_mounted_sensor(times, mount: gtsam.Pose3, odom_frame: gtsam.Pose
     return [gtsam.Pose3(inv(H(odom_frame)) @ H(truth_pose(t)) @ H(mount)) for t in times]
 
 
-def test_relative_pose_from_mounted_sensors(workspace):
+def test_relative_pose_from_mounted_sensors_has_the_hand_computed_body_increments(workspace):
     """Odometry of a sensor in its own odometry frame gives body increments
     mount (s_a^-1 s_b) mount^-1 = x_a^-1 x_b: `cam` (rotated and offset) at the state times, and
     `imu` (rotated) at 40 Hz, never at a state time, interpolated (exact for this motion)."""
@@ -275,7 +275,7 @@ def test_a_state_on_the_first_sample_after_a_gap_keeps_its_odometry(workspace):
 
 # --- pose.scaled_relative --------------------------------------------------------------------------
 
-def test_scaled_relative_pose_residual(workspace):
+def test_scaled_relative_pose_residual_matches_the_hand_computed_one_in_vo_units(workspace):
     scale = 2.5
     vo = [gtsam.Pose3(p.rotation(), p.translation() / scale) for p in TRUTH]  # VO reports t / s
     params = {"vo_scale": {"type": "scalar", "value": 1.0, "sigma": 10.0}}
@@ -308,7 +308,7 @@ def test_scaled_relative_pose_residual(workspace):
 
 # --- pose.co_registration --------------------------------------------------------------------------
 
-def test_co_registration_residual(workspace):
+def test_co_registration_residual_matches_the_hand_computed_one(workspace):
     base = gtsam.Pose3(gtsam.Rot3.RzRyRx(0.05, -0.02, 0.7), np.array([2.0, -1.0, 0.1]))  # worldA_T_baseB
     b_world = [gtsam.Pose3(gtsam.Rot3.Yaw(-0.5 * t), np.array([3.0 - t, 1.0, 0.0])) for t in T]
     b = [base.between(p) for p in b_world]
@@ -375,7 +375,7 @@ def test_random_walk_noise_grows_with_the_square_root_of_dt(workspace):
 
 # --- association notes -----------------------------------------------------------------------------
 
-def test_association_notes_dropped_samples(workspace):
+def test_association_keeps_samples_within_tolerance_and_notes_the_3_dropped(workspace):
     t_mocap = np.array([0.0, 0.202, 0.5, 0.71, 1.0, 1.3004, 2.5, 5.0])  # 0.71, 2.5 (after the last state) and 5.0 miss
     sources = [workspace.poses("clock", T, TRUTH),
                workspace.poses("mocap", t_mocap, [truth_pose(t) for t in t_mocap])]

@@ -1,6 +1,6 @@
 """UWB factor pieces: the planar and scaled range residual (contract: exact Jacobians), the native
-path and the custom path agree, wheel odometry integrates arcs exactly, the constant-velocity
-prior vanishes on constant twist, and the shared range-origin fit works in 2-D."""
+path and the custom path agree, wheel odometry integrates arcs exactly, and the shared range-origin
+fit works in 2-D."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def test_planar_world_range_with_scale_meets_the_contract():
 
 
 @pytest.mark.parametrize("planar", [False, True])
-def test_native_and_custom_paths_agree(planar):
+def test_native_and_custom_range_paths_agree_to_1e_12_without_scale_error(planar):
     """Without a scale error the range is GTSAM's native range+bias factor (shared with the rigid
     cables); the custom path with alpha = 0 gives the same residual."""
     rng = np.random.default_rng(7)
@@ -81,7 +81,7 @@ def test_wheel_odometry_integrates_an_arc_exactly():
     assert delta.y() == pytest.approx(radius * (1 - np.cos(w * T)), abs=1e-12)
 
 
-def test_range_origin_fit_in_the_plane():
+def test_range_origin_fit_in_the_plane_is_exact_and_refuses_a_line():
     rng = np.random.default_rng(2)
     q = rng.uniform(0, 8, (60, 2))
     a, c = np.array([10.0, -2.0]), 0.13

@@ -26,7 +26,7 @@ def models():
     return bias_models(range(2))
 
 
-def test_time_varying_bias_model_wins_when_the_bias_drifts(models):
+def test_drifting_bias_time_varying_model_beats_constant_and_none_within_10_cm(models):
     """Self-consistency (estimator noise = simulator noise). Measured (2 seeds, 60 s at 10 Hz, bias
     0.15 m drifting 0.03 m/sqrt(s)): position 0.25 /
     0.14 / 0.077 m and bias 0.21 / 0.12 / 0.056 m for none / constant / time-varying."""
@@ -39,7 +39,7 @@ def test_time_varying_bias_model_wins_when_the_bias_drifts(models):
 @pytest.mark.parametrize("noise", [{"uwb.range": 0.5}, {"uwb.range": 2.0},
                                    {"parameter.random_walk": 0.5, "odometry.diff_drive": 2.0}],
                          ids=["range_x0.5", "range_x2", "drift_x0.5_odometry_x2"])
-def test_bias_model_ranking_holds_with_misstated_noise(noise):
+def test_bias_model_ranking_holds_by_0_8x_with_noise_misstated_x0_5_or_x2(noise):
     """The test above is a self-consistency check (the estimator uses the simulator's noise
     levels); the ranking must not depend on that. Measured (seed 0) position none / constant /
     time-varying: range sigma x0.5 0.223 / 0.130 / 0.081 m, x2 0.227 / 0.126 / 0.074 m, drift x0.5
@@ -49,7 +49,7 @@ def test_bias_model_ranking_holds_with_misstated_noise(noise):
     assert m["constant"]["position_m"] < 0.8 * m["none"]["position_m"]
 
 
-def test_robust_kernel_holds_the_error_under_ten_percent_outliers():
+def test_cauchy_kernel_keeps_the_error_within_1_5x_clean_under_10_percent_nlos():
     """NLOS bursts on 10 % of the ranges: least squares 0.34 m, Cauchy 0.087 m (clean: 0.078 m)."""
     clean = position_rmse(run({"bias_model": "time_varying"}, 0))
     params = {"bias_model": "time_varying", "outlier_fraction": 0.1}
@@ -58,7 +58,7 @@ def test_robust_kernel_holds_the_error_under_ten_percent_outliers():
     assert robust < 1.5 * clean and plain > 2 * robust
 
 
-def test_unknown_anchor_calibrates_with_more_epochs():
+def test_unknown_anchor_error_shrinks_with_epochs_to_under_10_cm_after_40_s():
     """Anchor 3 starts 1 m off: 0.76 m after 5 s, 0.2 m after 20 s, under 0.1 m after a 40 s lap."""
     errors = []
     for duration in (5.0, 20.0, 40.0):
@@ -67,7 +67,7 @@ def test_unknown_anchor_calibrates_with_more_epochs():
     assert errors[0] > errors[1] > errors[2] and errors[2] < 0.1
 
 
-def test_two_robots_share_anchors_and_range_to_each_other():
+def test_tag_to_tag_ranges_improve_robot_a_and_robot_b_tracks_within_10_cm():
     """Measured: robot a 0.054 m with tag-to-tag ranges, 0.078 m without."""
     both = run({"robots": 2}, 0)
     alone = run({"robots": 2}, 0, edit=lambda c: c.update(
@@ -76,12 +76,12 @@ def test_two_robots_share_anchors_and_range_to_each_other():
     assert position_rmse(both, "b") < 0.1
 
 
-def test_graph_beats_per_epoch_multilateration():
+def test_graph_halves_the_error_of_per_epoch_multilateration():
     r = run({"bias_model": "time_varying"}, 0)
     assert position_rmse(r) < 0.5 * per_epoch_multilateration(r)
 
 
-def test_simulate_and_run_from_the_command_line(tmp_path):
+def test_simulate_and_run_from_the_command_line_track_within_15_cm(tmp_path):
     cli = Path(sys.executable).parent / "fusionkit"
     subprocess.run([str(cli), "simulate", "uwb.sim", "--out", str(tmp_path / "sim"), "--set", "duration=20"],
                    check=True, capture_output=True)
@@ -93,7 +93,7 @@ def test_simulate_and_run_from_the_command_line(tmp_path):
 
 
 @needs_labyrinth
-def test_labyrinth_recordings():
+def test_labyrinth_constant_bias_tracks_within_13_cm_beating_no_bias_and_multilateration():
     """Per-epoch multilateration 0.197 m; the graph without bias 0.169 m, with a constant bias per
     anchor 0.104 m (biases 0.075-0.127 m: the data's README says +0.09 to +0.16 m)."""
     r = labyrinth(LABYRINTH)
@@ -102,7 +102,7 @@ def test_labyrinth_recordings():
     assert all(0.03 < b < 0.2 for b in r["constant_bias_m"])
 
 
-def test_distance_proportional_scale_error_is_estimated():
+def test_2_percent_range_scale_is_estimated_within_3_sigma_and_halves_the_error():
     """Ranges 2 % long: alpha = 0.0216 +- 0.0017 measured; positions 1.3 cm with it, 5.9 cm without."""
     params = {"bias_model": "constant", "scale_error": 0.02, "bias_drift": 0.0}
     r = run(params, 0)
@@ -112,7 +112,7 @@ def test_distance_proportional_scale_error_is_estimated():
     assert position_rmse(r) < 0.5 * position_rmse(without)
 
 
-def test_constant_velocity_prior_replaces_the_odometry():
+def test_constant_velocity_prior_without_odometry_beats_multilateration_by_0_6x():
     """Without wheel odometry a constant-velocity prior carries the motion between epochs (0.11 m
     measured, against 0.24 m per-epoch multilateration)."""
     def no_wheels(config):
@@ -123,7 +123,7 @@ def test_constant_velocity_prior_replaces_the_odometry():
     assert position_rmse(r) < 0.6 * per_epoch_multilateration(r)
 
 
-def test_imu_between_epochs_in_3d():
+def test_drone_with_imu_tracks_within_5_cm_and_halves_multilateration_error():
     """uwb.drone: 6 anchors at several heights, ranges at 10 Hz, an IMU at 200 Hz with unknown
     biases. Measured (seed 0): 2.1 cm, per-anchor biases within 4 mm, per-epoch multilateration
     several times worse."""
