@@ -59,6 +59,17 @@ def run_handwritten(folder: Path) -> tuple[dict, dict]:
              "post": 0.0, "total": read + build + solve}, info)
 
 
+def lm_defaults_warning() -> list[str]:
+    """A WARNING line when fusionkit's LM defaults no longer match the hand-written chain.LM_DEFAULTS."""
+    from dataclasses import asdict
+
+    from fusionkit.solve.levenberg import DampingSettings
+    current = asdict(DampingSettings())
+    if current == chain.LM_DEFAULTS:
+        return []
+    return [f"WARNING: fusionkit's LM defaults {current} differ from the baseline's {chain.LM_DEFAULTS}"]
+
+
 def _project(history: list[tuple[int, float]], n: int) -> float:
     """Fusionkit seconds at n states from a power-law fit through the last two sizes."""
     if not history:
@@ -120,6 +131,7 @@ def run(quick: bool = False) -> dict:
                            "ok" if max(r["build"], r["solve"]) <= TARGET else f"OVER {TARGET}",
                            "same" if same else "DIFFERENT", repeats])
     tmp.cleanup()
+    notes += lm_defaults_warning()
     text = table(["states", "impl", "load ms", "read ms", "build ms", "optimizer ms", "checks ms",
                   "solve ms", "post ms", "total ms", "us/state", "iters", "final cost"], rows,
                  "(b) batch LM, pose chain (odometry + origin prior + absolute pose every 100 states), "

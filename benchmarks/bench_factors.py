@@ -15,13 +15,17 @@ import time
 import gtsam
 import numpy as np
 
-from fusionkit.graph.noise import gaussian
 from fusionkit_plugins.pose.factors import scaled_between_factor
 
 from _timing import ratio, table, us
 
 SIGMAS = [0.002] * 3 + [0.004] * 3  # what the quickstart's pose.scaled_relative entry uses
 SCALE_KEY = 10**9
+
+
+def gaussian(sigmas) -> gtsam.noiseModel.Base:
+    """GTSAM's diagonal noise model (unit when every sigma is 1), given to every variant alike."""
+    return gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, dtype=float))
 
 
 # --- the variants ----------------------------------------------------------------------------

@@ -86,7 +86,8 @@ def run(quick: bool = False) -> dict:
                  f"median of {repeats}; ms)")
     if lat_rows:
         text += "\n\n" + table(["variant", "p50 ms", "p99 ms", "first 10% mean ms", "last 10% mean ms", "growth"],
-                               lat_rows, "scaled_vo_mocap iSAM2 step latency (Python CustomFactors)")
+                               lat_rows, "scaled_vo_mocap iSAM2 step latency: update + calculateEstimate "
+                               "(Python CustomFactors)")
     text += "".join(f"\n{f}" for f in failures)
     text += ("\nread_s/build_s/solve_s come from result.timings; checks+marginals = solve_and_marginals_s - solve_s; "
              "post = the rest of estimate(); write = write_outputs(plots=False), write+plots = plots=True.")

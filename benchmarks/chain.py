@@ -4,7 +4,8 @@ prior on the first pose, and absolute poses every `ABS_EVERY` states.
 `write_dataset` writes TUM files + a fusionkit config into a folder; `load_arrays` reads the same
 files with numpy for the hand-written baselines, and `handwritten_graph` builds in a plain python
 loop exactly the graph and initial values fusionkit builds from that config (same factors, same
-order, same dead-reckoning initial values, same noise models).
+order, same dead-reckoning initial values, same noise models). The baselines use gtsam and numpy
+only; fusionkit writes the files.
 """
 
 from __future__ import annotations
@@ -117,22 +118,25 @@ def handwritten_graph(odom: np.ndarray, absolute: np.ndarray) -> tuple[gtsam.Non
     return graph, initial
 
 
+# fusionkit's batch LM defaults, written out (bench_batch warns if fusionkit's change): tolerances
+# of fusionkit/solve/batch.py, lambda schedule of fusionkit.solve.levenberg.DampingSettings, which
+# damps lambda * diag(J^T J) like GTSAM's diagonalDamping (same min/max diagonal 1e-6 / 1e32)
+LM_DEFAULTS = {"lambda_initial": 1e-5, "lambda_factor": 10.0, "lambda_upper": 1e5, "lambda_lower": 0.0,
+               "min_diagonal": 1e-6, "max_diagonal": 1e32}
+
+
 def lm_params() -> gtsam.LevenbergMarquardtParams:
-    """GTSAM's LM with the settings fusionkit's batch LM uses by default (tolerances from
-    fusionkit/solve/batch.py, lambda schedule from fusionkit.solve.levenberg.DampingSettings; when
-    DampingSettings has min/max_diagonal, fusionkit damps lambda * diag(J^T J) like GTSAM's
-    diagonalDamping, whose min/max diagonal defaults 1e-6/1e32 are the same)."""
-    from fusionkit.solve.levenberg import DampingSettings
-    d = DampingSettings()
+    """GTSAM's LM with the settings fusionkit's batch LM uses by default (LM_DEFAULTS)."""
+    d = LM_DEFAULTS
     p = gtsam.LevenbergMarquardtParams()
     p.setRelativeErrorTol(1e-6)
     p.setAbsoluteErrorTol(1e-9)
     p.setMaxIterations(100)
-    p.setlambdaInitial(d.lambda_initial)
-    p.setlambdaFactor(d.lambda_factor)
-    p.setlambdaUpperBound(d.lambda_upper)
-    p.setlambdaLowerBound(d.lambda_lower)
-    p.setDiagonalDamping(hasattr(d, "min_diagonal"))
+    p.setlambdaInitial(d["lambda_initial"])
+    p.setlambdaFactor(d["lambda_factor"])
+    p.setlambdaUpperBound(d["lambda_upper"])
+    p.setlambdaLowerBound(d["lambda_lower"])
+    p.setDiagonalDamping(True)
     return p
 
 

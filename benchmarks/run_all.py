@@ -6,7 +6,7 @@ baselines measured in the same process.
     python benchmarks/run_all.py --only factors,isam2
 
 Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
-cable_sag (sagging cables: Table 5.2, finite-element data, static simulator and calibration speed),
+cable_sag (sagging cables: thesis Table 5.2, finite-element data, static simulator and calibration speed),
 uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed),
 busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.

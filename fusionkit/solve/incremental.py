@@ -1,6 +1,7 @@
 """Incremental solvers: iSAM2 and the fixed-lag smoother. Factors enter in time order (the time
-of the latest state they touch; static-only factors first); the wall time of each update is
-recorded as the per-step latency.
+of the latest state they touch; static-only factors first). The per-step latency is the wall
+time a real-time user waits for each step: the update plus `calculateEstimate()`, which hands the
+new estimate out (the estimate after the last step is the result).
 
 `warmup: SECONDS` solves the factors of the first SECONDS (from the first state) as one batch
 (Levenberg-Marquardt) and hands the result to the incremental solver in its first update: the
@@ -87,14 +88,17 @@ def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
                       "static parameters need a prior until the data constrain them)") from None
 
 
-def _timed_update(problem: Problem, t: float, update: Callable[[], object]) -> float:
-    """Run one solver update; return its wall time (s), turning an indeterminate system into a SolverError."""
+def _timed_step(problem: Problem, t: float, update: Callable[[], object],
+                estimate: Callable[[], gtsam.Values]) -> tuple[gtsam.Values, float]:
+    """Run one solver update and compute the estimate it hands out; return (estimate, wall time
+    of both in s), turning an indeterminate system into a SolverError."""
     tic = time.perf_counter()
     try:
         update()
     except RuntimeError as exc:
         _raise_unconstrained(problem, exc, t)
-    return time.perf_counter() - tic
+    values = estimate()
+    return values, time.perf_counter() - tic
 
 
 def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
@@ -103,17 +107,18 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     isam = gtsam.ISAM2(_isam2_params(settings))
     latency = []
     start = time.perf_counter()
-    steps, warmup = list(time_steps(problem)), 0.0
+    steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
     if settings.get("warmup", 0) > 0:
         tic = time.perf_counter()
         first, values, t, steps = warm_start(problem, steps, settings["warmup"])
-        _timed_update(problem, t, lambda: isam.update(first, values))
+        estimate, _ = _timed_step(problem, t, lambda: isam.update(first, values), isam.calculateEstimate)
         warmup = time.perf_counter() - tic
     for i, (t, factors, new) in enumerate(steps):
-        latency.append(_timed_update(problem, t, lambda: isam.update(factors, value_subset(problem, new))))
+        estimate, dt = _timed_step(problem, t, lambda: isam.update(factors, value_subset(problem, new)),
+                                   isam.calculateEstimate)
+        latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
-    estimate = isam.calculateEstimate()
     seconds = time.perf_counter() - start
     return SolveResult(estimate, "isam2", graph.error(problem.initial), graph.error(estimate), len(latency),
                        seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance,
@@ -136,7 +141,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     covariances: dict[int, np.ndarray] = {}
     latency = []
     start = time.perf_counter()
-    now = None
+    now, est = None, gtsam.Values()  # est: the estimate handed out after the latest update
     steps, warm_values, warmup = list(time_steps(problem)), None, 0.0
     if settings.get("warmup", 0) > 0:
         tic = time.perf_counter()
@@ -155,7 +160,6 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         now = t if np.isfinite(t) else (now if now is not None else 0.0)
         leaving = [k for k, kt in in_window.items() if kt < now - lag]
         if leaving:
-            est = smoother.calculateEstimate()
             for k in leaving:
                 final[k] = problem.keys.decode(k)[0].vartype.read(est, k)
                 if marginal_keys and k in marginal_keys:
@@ -168,14 +172,14 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             if kt != float("-inf") and k not in final:
                 in_window[k] = kt
         values = warm_values if i == 0 and warm_values is not None else value_subset(problem, new)
-        dt = _timed_update(problem, now, lambda: smoother.update(factors, values, stamps))
+        est, dt = _timed_step(problem, now, lambda: smoother.update(factors, values, stamps),
+                              smoother.calculateEstimate)
         if i == 0 and warm_values is not None:
             warmup += dt
         else:
             latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
-    est = smoother.calculateEstimate()
     estimate = gtsam.Values()
     for k in problem.initial.keys():
         vt = problem.keys.decode(k)[0].vartype

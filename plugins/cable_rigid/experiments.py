@@ -1,4 +1,5 @@
-"""The experiments of spec cable_rigid.md on simulated ARAS-CAM sequences: what the benchmark
+"""The experiments of the thesis's ARAS-CAM chapter (docs/models/cable_rigid.md) on simulated
+ARAS-CAM sequences: what the benchmark
 (benchmarks/bench_cable_rigid.py) prints and the tests assert.
 
 - `run_sequence`: one simulated sequence (`smooth` = sequence 12, `dynamic` = sequence 01) through
@@ -27,7 +28,7 @@ from fusionkit.data.association import nearest
 from .baselines import localization_errors
 from .simulator import ROBOT_NAME, CdprSimulator
 
-SEQUENCES = ("dynamic", "smooth")  # the spec's sequence 01 and 12
+SEQUENCES = ("dynamic", "smooth")  # the thesis's sequences 01 and 12
 CABLE_ENTRY = "factors[2]:cable.length"
 TAPE_SIGMA = 0.003       # m: a tape measure between two pulleys
 COPLANAR_SIGMA = 0.002   # m: pulleys mounted on one frame

@@ -53,7 +53,8 @@ MAX_DRAWS = 100  # redraws per pose before giving up on a workspace
 # 1 cm of model tolerance lets the first solve travel from pulleys metres off (0.1 mm from there
 # stalls it); the second, from that estimate, holds the equation to 0.1 mm, as exact as this
 # simulator's data. It helps only where the data match the model exactly: on the finite-element
-# poses it hurts (benchmarks/bench_cable_sag.py measures both)
+# poses, which the catenary matches to about 1 cm, it makes the small robot worse and the large one
+# barely better (benchmarks/bench_cable_sag.py measures both)
 HEIGHT_SIGMA = 0.01
 REFINED_HEIGHT_SIGMA = 1e-4
 

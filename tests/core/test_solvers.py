@@ -110,6 +110,60 @@ def test_incremental_solvers_record_per_step_latency(runs, name):
     assert result.solution.iterations == len(steps)
 
 
+class _SolverClock:
+    """Stands in for time.perf_counter in fusionkit.solve.incremental: it moves only when the
+    incremental solver works, by 1 s per update and 1 ms per calculateEstimate."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        return self.now
+
+    def counting(self, solver_class):
+        clock = self
+
+        class Counting:
+            def __init__(self, *args):
+                self._inner = solver_class(*args)
+
+            def update(self, *args):
+                clock.now += 1.0
+                return self._inner.update(*args)
+
+            def calculateEstimate(self, *args):
+                clock.now += 1e-3
+                return self._inner.calculateEstimate(*args)
+
+            def __getattr__(self, name):
+                return getattr(self._inner, name)
+        return Counting
+
+
+@pytest.mark.parametrize("name", INCREMENTAL)
+def test_step_latency_is_one_update_plus_one_calculate_estimate(runs, monkeypatch, name):
+    """A real-time user needs the estimate after every step: each step's latency covers exactly
+    one update and one calculateEstimate (1.001 s on the solver clock), and the result is the
+    same as without the clock."""
+    import gtsam
+
+    from fusionkit.solve import incremental
+    clock = _SolverClock()
+
+    class CountingGtsam:
+        ISAM2 = clock.counting(gtsam.ISAM2)
+        IncrementalFixedLagSmoother = clock.counting(gtsam.IncrementalFixedLagSmoother)
+
+        def __getattr__(self, attr):
+            return getattr(gtsam, attr)
+    monkeypatch.setattr(incremental, "gtsam", CountingGtsam())
+    monkeypatch.setattr(incremental, "time", clock)
+    result = fusionkit.run(SCALED_VO, SHORT + SOLVERS[name])
+    assert len(result.solution.step_latency) == 241
+    assert result.solution.step_latency == pytest.approx(np.full(241, 1.001), abs=1e-9)
+    assert max_pose_difference(result, runs[name]) < 1e-12
+
+
 @pytest.mark.parametrize("name", WARMUP)
 def test_warmup_solves_the_first_seconds_as_one_batch(runs, name):
     """warmup: 2 s: the static prior and the first 61 VO frames (t <= 2.0 s) go in one update after
