@@ -18,7 +18,7 @@ quickstart: $(STAMP)
 	$(BIN)/fusionkit run configs/quickstart.yaml --out out/quickstart
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py --quick

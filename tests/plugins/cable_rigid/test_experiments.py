@@ -1,4 +1,4 @@
-"""The ARAS-CAM results of spec cable_rigid.md on simulated sequences (dynamic = 01, smooth = 12),
+"""The ARAS-CAM results of docs/models/cable_rigid.md on simulated sequences (dynamic = 01, smooth = 12),
 750 poses each: Table 4.1's trend, the cable-length residual before/after refinement, the
 consistency of the position sigmas, the gain of pulley pseudo-measurements, incremental solving,
 and forward kinematics. benchmarks/bench_cable_rigid.py prints the same over 30 seeds."""

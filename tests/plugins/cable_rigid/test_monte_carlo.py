@@ -1,4 +1,4 @@
-"""`cable.monte_carlo` (spec cable_rigid.md, "Initialization: Monte-Carlo self-calibration"):
+"""`cable.monte_carlo` (docs/models/cable_rigid.md, "Initialization: Monte-Carlo self-calibration"):
 pulleys, encoder offsets and the VO scale from encoder readings and unscaled VO alone, starting
 from particles uniform over a region; the belief narrows shell -> ring -> cluster as the motion
 covers more axes; an under-excited cable is reported as unresolved; a config that runs it before

@@ -1,4 +1,4 @@
-"""Observability diagnostic of the cable calibration (spec cable_rigid.md eq. 4.6/4.7): the squared
+"""Observability diagnostic of the cable calibration (thesis eqs. 4.6/4.7, docs/models/cable_rigid.md): the squared
 measurement is linear in the lifted unknowns; its rank and conditioning tell whether a trajectory
 excites each cable, and which way to move when it does not."""
 

@@ -1,4 +1,4 @@
-"""Simulator `cable.cdpr` (spec cable_rigid.md, ARAS-CAM): the streams agree with the measurement
+"""Simulator `cable.cdpr` (docs/models/cable_rigid.md, ARAS-CAM): the streams agree with the measurement
 models at truth to the noise level, the trajectory moves along x, then y, then z inside the
 workspace, dynamic motion swings where the encoders cannot see it, and the written dataset's
 config runs and recovers the pulleys and the VO scale."""

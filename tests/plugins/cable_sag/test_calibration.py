@@ -1,4 +1,4 @@
-"""The kinematic-static calibration of spec cable_sag.md (fig. 5.2) on the static simulator's data
+"""The kinematic-static calibration of docs/models/cable_sag.md (thesis fig. 5.2) on the static simulator's data
 and on the external finite-element poses: Table 5.2's errors, the rigid-model ablation, the CLI."""
 
 from __future__ import annotations

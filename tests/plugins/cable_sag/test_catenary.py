@@ -1,4 +1,4 @@
-"""The catenary (spec eqs. 5.1-5.4) in its cancellation-free form: equal to the printed equations
+"""The catenary (thesis eqs. 5.1-5.4) in its cancellation-free form: equal to the printed equations
 where they are computable, finite where they are not, exact Jacobians, the right limits."""
 
 from __future__ import annotations

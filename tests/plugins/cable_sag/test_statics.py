@@ -1,4 +1,4 @@
-"""Statics through the reference cable (spec eqs. 5.5-5.11), the static simulator built on it
+"""Statics through the reference cable (thesis eqs. 5.5-5.11), the static simulator built on it
 (inverse and forward problems), and its validation against an independent lumped-mass chain."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""UWB results of spec uwb.md on the simulator and on the Labyrinth recordings: the three bias
+"""UWB results of docs/models/uwb.md on the simulator and on the Labyrinth recordings: the three bias
 models side by side, the robust kernel under NLOS outliers, anchor self-calibration against the
 number of epochs, two robots in one graph, the per-epoch multilateration baseline, the CLI."""
 
