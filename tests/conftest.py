@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -36,6 +37,24 @@ class Workspace:
         path = self.folder / name
         path.write_text(yaml.safe_dump(data, sort_keys=False))
         return path
+
+
+@pytest.fixture(scope="session")
+def simulated(tmp_path_factory) -> Path:
+    """A file-based dataset (TUM data, truth, robot description, config.yaml) written once by the
+    pose.scaled_vo simulator (6 s, seed 1)."""
+    from fusionkit.simulate import write_dataset
+    folder = tmp_path_factory.mktemp("simulated") / "ds"
+    write_dataset("pose.scaled_vo", folder, ["duration=6"], seed=1)
+    return folder
+
+
+@pytest.fixture
+def ds(simulated, tmp_path) -> Path:
+    """A private copy of the simulated dataset; returns the folder (config at ds / 'config.yaml')."""
+    folder = tmp_path / "ds"
+    shutil.copytree(simulated, folder)
+    return folder
 
 
 @pytest.fixture

@@ -16,7 +16,6 @@ import yaml
 
 from fusionkit.cli.main import main
 from fusionkit.errors import SolverError
-from fusionkit.simulate import write_dataset
 from fusionkit.solve.checks import check_solution
 
 REPO = Path(__file__).resolve().parents[2]
@@ -61,22 +60,6 @@ def rewrite(path: Path, old: str, new: str) -> Path:
     assert old in text, old
     path.write_text(text.replace(old, new, 1))
     return path
-
-
-@pytest.fixture(scope="session")
-def simulated(tmp_path_factory) -> Path:
-    """A file-based dataset (TUM data, truth, robot description, config.yaml) written once by the simulator."""
-    folder = tmp_path_factory.mktemp("simulated") / "ds"
-    write_dataset("pose.scaled_vo", folder, ["duration=6"], seed=1)
-    return folder
-
-
-@pytest.fixture
-def ds(simulated, tmp_path) -> Path:
-    """A private copy of the simulated dataset; returns the folder (config at ds / 'config.yaml')."""
-    folder = tmp_path / "ds"
-    shutil.copytree(simulated, folder)
-    return folder
 
 
 @pytest.fixture

@@ -4,7 +4,6 @@ reaches the summary, report.json `notes` and `validate`; the estimate is the one
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -13,23 +12,8 @@ import pytest
 from fusionkit.cli.main import main
 from fusionkit.data.files import read_csv_stream, read_tum, unit_quaternions
 from fusionkit.data.rosbag_reader import read_bag
-from fusionkit.simulate import write_dataset
 
 from test_rosbag import POSE_TYPE, POSES, bag_path, write_bag
-
-
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("quaternions") / "ds"
-    write_dataset("pose.scaled_vo", folder, ["duration=6"], seed=1)
-    return folder
-
-
-@pytest.fixture
-def ds(simulated, tmp_path) -> Path:
-    folder = tmp_path / "ds"
-    shutil.copytree(simulated, folder)
-    return folder
 
 
 def scale_quaternions(path: Path, rows: list[int], factor: float) -> list[int]:

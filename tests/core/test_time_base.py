@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -20,25 +19,10 @@ from fusionkit.errors import DataError
 from fusionkit.eval.notes import evaluation_notes
 from fusionkit.pipeline import Truth, evaluate
 from fusionkit.report.summary import summary_text
-from fusionkit.simulate import write_dataset
 
 from test_rosbag import POSES, T, bag_path, write_bag, write_config
 
 PREFIX = "fusionkit: error: "
-
-
-@pytest.fixture(scope="module")
-def simulated(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("timebase") / "ds"
-    write_dataset("pose.scaled_vo", folder, ["duration=6"], seed=1)
-    return folder
-
-
-@pytest.fixture
-def ds(simulated, tmp_path) -> Path:
-    folder = tmp_path / "ds"
-    shutil.copytree(simulated, folder)
-    return folder
 
 
 def one_error_line(capsys, argv: list[str]) -> str:
