@@ -96,6 +96,14 @@ class CheckScope:
             raise spec.error(param_key, f"parameter {name!r} is a {desc.parameters[name].vartype.name}; "
                              f"expected a {vartype}")
 
+    def require_model(self, spec: Spec, robot_key: str, model: str) -> "RobotDescription":
+        """The description of robot `spec[robot_key]`; error unless its `model:` is `model`."""
+        desc = self.robots[spec[robot_key]]
+        if desc.model != model:
+            raise spec.error(robot_key, f"robot {spec[robot_key]!r} is a {desc.model!r} robot; {spec.type} needs "
+                             f"a {model!r} robot (model: {model} in its description)")
+        return desc
+
     def require_values(self, spec: Spec, robot_key: str, name: str, why: str) -> None:
         """Error unless robot `spec[robot_key]`'s description gives parameter `name` a value (not only
         `count:`), for a plugin that reads the nominal value, `why` (e.g. 'to guess the first lengths')."""

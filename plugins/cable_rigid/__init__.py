@@ -1,7 +1,7 @@
 """Built-in `cable_rigid` plugin: the cdpr robot model, rigid/elastic cable factors, pulley
 pseudo-measurements (models: docs/models/cable_rigid.md)."""
 
-from fusionkit import hookimpl
+from fusionkit.api import hookimpl
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS

@@ -8,9 +8,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Spec, gaussian
-from fusionkit.geometry import range_factor
-from fusionkit.testing import FactorExample
+from fusionkit.api import FactorExample, FactorType, gaussian, range_factor, Spec
 
 from .model import cable_robot
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
@@ -26,10 +24,7 @@ def length_columns(spec: Spec, n: int) -> list[str]:
 
 def check_cdpr(spec: Spec, scope) -> int:
     """The robot must be a cdpr; returns its number of cables."""
-    desc = scope.robots[spec["robot"]]
-    if desc.model != "cdpr":
-        raise spec.error("robot", f"robot {spec['robot']!r} is a {desc.model!r} robot; this factor needs a cdpr")
-    return len(desc.extra["cables"]["attachments"])
+    return len(scope.require_model(spec, "robot", "cdpr").extra["cables"]["attachments"])
 
 
 def check_cables(spec: Spec, key: str, n: int) -> None:

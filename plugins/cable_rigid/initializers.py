@@ -28,10 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fusionkit import Initializer, Spec
-from fusionkit.data.association import interpolate_poses, nearest
-from fusionkit.data.stream import POSE_COLUMNS
-from fusionkit.geometry import fit_range_origin
+from fusionkit.api import POSE_COLUMNS, fit_range_origin, Initializer, interpolate_poses, nearest, Spec
 
 from .factors import check_cdpr, length_columns
 from .model import cable_robot

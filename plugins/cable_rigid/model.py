@@ -22,8 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit import RobotModel
-from fusionkit.robots.description import RobotDescription
+from fusionkit.api import RobotDescription, RobotModel
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 

@@ -64,8 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit import Spec
-from fusionkit.data.association import nearest
+from fusionkit.api import nearest, Spec
 
 from .model import cable_robot
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.geometry import body_point_range
+from fusionkit.api import body_point_range
 
 
 def elastic_cable_residual(pose: gtsam.Pose3, pulley: np.ndarray, offset: float, b: np.ndarray,

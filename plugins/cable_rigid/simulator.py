@@ -33,12 +33,10 @@ import yaml
 from scipy.optimize import brentq, nnls
 from scipy.spatial.transform import Rotation
 
-from fusionkit import Simulator, SourceOutput
+from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, odometry, pose_stream, poses_from_array,
+                           sample_times, Simulator, SourceOutput, Stream)
+from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
 from fusionkit.config.yamlio import SafeLoader
-from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
-from fusionkit.errors import ConfigError
-from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
-from fusionkit.simulation import noisy, odometry, sample_times
 
 ROBOTS_DIR = Path(__file__).resolve().parents[2] / "robots"
 GRAVITY = 9.81

@@ -3,7 +3,7 @@ the catenary statics through one reference cable, the kinematic-static calibrati
 fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
 plugin; it adds to the rigid-cable plugin (its `cdpr` model, helpers) without changing it."""
 
-from fusionkit import hookimpl
+from fusionkit.api import hookimpl
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS

@@ -20,12 +20,9 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Spec, gaussian
-from fusionkit.graph.variables import ROT3, vector_type
-from fusionkit.testing import FactorExample
-from fusionkit_plugins.cable_rigid.factors import check_cdpr, length_columns
+from fusionkit.api import ROT3, FactorExample, FactorType, gaussian, Spec, vector_type
 
-from .model import CORRECTION, FORCE, check_sag_robot, sag_robot, shipped_robot
+from .model import CORRECTION, FORCE, cable_count, check_sag_robot, length_columns, sag_robot, shipped_robot
 from .static_solver import inverse_pose
 from .statics import SagRobot, equilibrium
 
@@ -95,7 +92,7 @@ class SagCable(FactorType):
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        n = check_cdpr(spec, scope)
+        n = cable_count(spec, scope)
         check_sag_robot(spec, scope, n)
         scope.require_states(spec, "robot", "pose3")
         scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
@@ -149,7 +146,7 @@ class ReferenceForce(FactorType):
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        check_cdpr(spec, scope)
+        cable_count(spec, scope)
         scope.require_states(spec, "robot", "pose3")
         scope.require_columns(spec, "stream", (spec.get("column", "f"),))
 

@@ -19,11 +19,9 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit import Initializer, Spec
-from fusionkit.graph.variables import ROT3
-from fusionkit_plugins.cable_rigid.factors import check_cdpr
+from fusionkit.api import ROT3, Initializer, Spec
 
-from .model import CORRECTION, FORCE, check_sag_robot, sag_robot
+from .model import CORRECTION, FORCE, cable_count, check_sag_robot, sag_robot
 from .static_solver import StaticsError, initial_reference_force, inverse_pose
 
 
@@ -38,7 +36,7 @@ class SagForces(Initializer):
               "required": ["robot"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        check_sag_robot(spec, scope, check_cdpr(spec, scope))
+        check_sag_robot(spec, scope, cable_count(spec, scope))
         scope.require_states(spec, "robot", "pose3")
 
     def initialize(self, ctx, spec: Spec) -> None:

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit import Spec
-from fusionkit.robots.description import RobotDescription
+from fusionkit.api import RobotDescription, Spec
 from fusionkit_plugins.cable_rigid.simulator import shipped_description
 
 from .statics import N_CABLES, SagRobot
@@ -14,6 +13,16 @@ from .statics import N_CABLES, SagRobot
 GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N)
 CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
 FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
+
+
+def cable_count(spec: Spec, scope) -> int:
+    """The entry's robot must be a `cdpr` (the cable robot model); its number of cables."""
+    return len(scope.require_model(spec, "robot", "cdpr").extra["cables"]["attachments"])
+
+
+def length_columns(spec: Spec, n: int) -> list[str]:
+    """Stream columns of the cable lengths: `columns:` or l0 .. l{n-1}, as the rigid-cable factors read them."""
+    return list(spec.get("columns") or [f"l{i}" for i in range(n)])
 
 
 def sag_robot_from(extra: dict, reference: int = 0) -> SagRobot:

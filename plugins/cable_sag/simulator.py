@@ -20,11 +20,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fusionkit import Simulator, SourceOutput
-from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
-from fusionkit.errors import ConfigError
-from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
-from fusionkit.simulation import noisy
+from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, pose_stream, poses_from_array, Simulator,
+                           SourceOutput, Stream)
+from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
 from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_description
 
 from .model import shipped_robot

@@ -1,8 +1,8 @@
-"""Built-in `pose` plugin: generic pose and IMU factors, initializers and simulators."""
+"""Built-in `pose` plugin: generic pose, IMU and motion-model factors, initializers and simulators."""
 
-from fusionkit import hookimpl
+from fusionkit.api import hookimpl
 
-from . import imu
+from . import imu, motion
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
@@ -10,7 +10,7 @@ from .simulators import SIMULATORS
 
 @hookimpl
 def register_factor_types():
-    return FACTOR_TYPES + imu.FACTOR_TYPES
+    return FACTOR_TYPES + imu.FACTOR_TYPES + motion.FACTOR_TYPES
 
 
 @hookimpl

@@ -9,12 +9,8 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import POSE_SIGMA_SCHEMA, FactorType, Spec, pose_sigmas
-from fusionkit.data.association import interpolate_poses, segment_ids
-from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
-from fusionkit.graph.noise import gaussian
-from fusionkit.graph.variables import POSE2, POSE3, SCALAR
-from fusionkit.testing import FactorExample
+from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, FactorExample, FactorType,
+                           gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
 
 from .residuals import co_registration_residual, scaled_between_residual
 

@@ -13,9 +13,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Initializer, Spec
-from fusionkit.graph.variables import VELOCITY3
-from fusionkit.testing import FactorExample
+from fusionkit.api import VELOCITY3, FactorExample, FactorType, Initializer, Spec, held_intervals
 
 NAME = {"type": "string"}
 IMU_COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -36,11 +34,8 @@ def preintegrate(params, bias: gtsam.imuBias.ConstantBias, t: np.ndarray, sample
                  t1: float) -> gtsam.PreintegratedImuMeasurements:
     """The samples (K, 6) at times t held over [t0, t1), each until the next sample."""
     pim = gtsam.PreintegratedImuMeasurements(params, bias)
-    first = max(int(np.searchsorted(t, t0, side="right")) - 1, 0)
-    last = int(np.searchsorted(t, t1, side="left"))
-    edges = np.append(t, np.inf)
-    for j in range(first, max(last, first + 1)):
-        dt = min(edges[j + 1], t1) - max(t[j], t0)
+    rows, dts = held_intervals(t, t0, t1)
+    for j, dt in zip(rows, dts):
         if dt > 0:
             pim.integrateMeasurement(samples[j, :3], samples[j, 3:], float(dt))
     return pim

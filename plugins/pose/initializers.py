@@ -5,9 +5,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit import Initializer, Spec
-from fusionkit.data.association import interpolate_poses, nearest
-from fusionkit.data.stream import POSE_COLUMNS, poses_from_array
+from fusionkit.api import POSE_COLUMNS, Initializer, interpolate_poses, nearest, poses_from_array, Spec
 
 from .factors import BASE_TRANSFORM, to_pose2
 

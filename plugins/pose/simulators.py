@@ -6,10 +6,9 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit import Simulator, SourceOutput
-from fusionkit.data.stream import pose_array_from, pose_stream, poses_from_array
-from fusionkit.simulation import POSE_NOISE_SCHEMA as SIGMA
-from fusionkit.simulation import noisy, odometry, sample_times, smooth_trajectory
+from fusionkit.api import (noisy, odometry, pose_array_from, pose_stream, poses_from_array, sample_times,
+                           Simulator, smooth_trajectory, SourceOutput)
+from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
 
 
 class ScaledVoSimulator(Simulator):
@@ -29,7 +28,7 @@ class ScaledVoSimulator(Simulator):
                 "mocap_sigma": {"rotation": 0.01, "translation": 0.01}}
 
     def stream_columns(self, params: dict):
-        from fusionkit.data.stream import POSE_COLUMNS
+        from fusionkit.api import POSE_COLUMNS
         return {"vo": POSE_COLUMNS, "mocap": POSE_COLUMNS}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
@@ -89,7 +88,7 @@ class TwoRobotsSimulator(Simulator):
                 "mocap_sigma": {"rotation": 0.01, "translation": 0.01}}
 
     def stream_columns(self, params: dict):
-        from fusionkit.data.stream import POSE_COLUMNS
+        from fusionkit.api import POSE_COLUMNS
         return {n: POSE_COLUMNS for n in ("a_odom", "b_odom", "a_mocap", "a_sees_b")}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:

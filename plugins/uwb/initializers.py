@@ -26,9 +26,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from fusionkit import Initializer, Spec
-from fusionkit.geometry import fit_range_origin
-from fusionkit.graph.variables import POINT2, POSE2
+from fusionkit.api import POINT2, POSE2, fit_range_origin, Initializer, Spec
 
 from .factors import _range_rows, lever_arm
 from .survey import anchor_frame, gauge_factors, line_of_sight, place_anchors, range_matrix, rigid_fit

@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusionkit import Source, SourceOutput, Spec
-from fusionkit.data.stream import Stream, pose_stream
+from fusionkit.api import pose_stream, Source, SourceOutput, Spec, Stream
 
 NAME = {"type": "string"}
 

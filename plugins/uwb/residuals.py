@@ -61,13 +61,3 @@ def tag_to_tag_residual(pose_a, pose_b, b_a: np.ndarray, b_b: np.ndarray, z: flo
         H[0] = (u @ Ha[0]).reshape(1, -1)
         H[1] = (-u @ Hb[0]).reshape(1, -1)
     return np.array([r - z])
-
-
-def unicycle_increment(v_right: np.ndarray, v_left: np.ndarray, dt: np.ndarray, wheel_distance: float) -> gtsam.Pose2:
-    """The body-frame motion of a differential-drive robot from wheel speeds held over each dt:
-    v = (vr + vl) / 2, omega = (vr - vl) / d, composed exactly (arcs) sample by sample."""
-    out = gtsam.Pose2()
-    for vr, vl, h in zip(v_right, v_left, dt):
-        v, w = 0.5 * (vr + vl), (vr - vl) / wheel_distance
-        out = out.compose(gtsam.Pose2.Expmap(np.array([v * h, 0.0, w * h])))
-    return out

@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit import Simulator, SourceOutput
-from fusionkit.data.stream import Stream, pose_stream
-from fusionkit.simulation import sample_times
+from fusionkit.api import pose_stream, sample_times, Simulator, SourceOutput, Stream
 
 ROBOT_NAMES = ("a", "b")
 ANCHORS = "anchors"

@@ -9,8 +9,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit import FactorType, Spec
-from fusionkit.testing import FactorExample
+from fusionkit.api import FactorExample, FactorType, Spec
 
 from .residuals import height_residual
 

@@ -6,7 +6,7 @@
 Implement only the hooks you need (see `fusionkit.hookspecs`); each returns classes.
 """
 
-from fusionkit import hookimpl
+from fusionkit.api import hookimpl
 
 from .factors import FACTOR_TYPES
 from .simulator import SIMULATORS

@@ -15,8 +15,7 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fusionkit import Simulator, SourceOutput
-from fusionkit.data.stream import POSE_COLUMNS, Stream, pose_stream, poses_from_array
+from fusionkit.api import POSE_COLUMNS, Simulator, SourceOutput, Stream, pose_stream, poses_from_array
 
 POSE_SIGMA = {"type": "object",
               "properties": {"rotation": {"type": "number", "minimum": 0},

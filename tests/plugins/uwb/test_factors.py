@@ -12,7 +12,6 @@ from fusionkit import gaussian
 from fusionkit.geometry import fit_range_origin, range_factor
 from fusionkit.testing import FactorExample, check_factor_example
 from fusionkit_plugins.uwb.factors import scaled_range_factor
-from fusionkit_plugins.uwb.residuals import unicycle_increment
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -68,17 +67,6 @@ def test_native_and_custom_range_paths_agree_to_1e_12_without_scale_error(planar
     native = range_factor(0, 1, 7.3, gaussian([0.05]), mount, 2)
     custom = scaled_range_factor(0, 11, 2, 3, b, 7.3, gaussian([0.05]), planar=planar)
     assert native.unwhitenedError(values) == pytest.approx(custom.unwhitenedError(values), abs=1e-12)
-
-
-def test_wheel_odometry_integrates_an_arc_exactly():
-    """Constant wheel speeds drive a circle of radius v / omega: the increment is the chord."""
-    d, vr, vl, T = 0.3, 0.6, 0.4, 2.0
-    v, w = (vr + vl) / 2, (vr - vl) / d
-    delta = unicycle_increment(np.full(20, vr), np.full(20, vl), np.full(20, T / 20), d)
-    radius = v / w
-    assert delta.theta() == pytest.approx(w * T)
-    assert delta.x() == pytest.approx(radius * np.sin(w * T), abs=1e-12)
-    assert delta.y() == pytest.approx(radius * (1 - np.cos(w * T)), abs=1e-12)
 
 
 def test_range_origin_fit_in_the_plane_is_exact_and_refuses_a_line():

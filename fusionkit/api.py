@@ -1,0 +1,48 @@
+"""fusionkit's public plugin API: everything a plugin, built-in or third-party, may import.
+
+    from fusionkit.api import FactorType, Spec, hookimpl, POSE3, gaussian, ...
+
+Plugins import from this module (and `fusionkit.testing` in their tests) only; the rest of
+`fusionkit` is internal and may change. `API_VERSION` follows semantic versioning: a minor
+version adds names, a major one changes or removes them. docs/plugin_guide.md documents each name.
+"""
+
+from __future__ import annotations
+
+from . import hookimpl
+from .components import (CheckScope, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
+                         Spec)
+from .data.association import Association, interpolate_poses, nearest, segment_ids
+from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
+from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
+from .geometry import body_point_range, fit_range_origin, range_factor
+from .graph.noise import POSE_SIGMA_SCHEMA, gaussian, pose_sigma_schema, pose_sigmas
+from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
+                              vector_type)
+from .models.integration import held_intervals
+from .models.planar import differential_drive_twist, unicycle_increment
+from .robots.description import Parameter, RobotDescription, Sensor
+from .simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
+from .testing import FactorExample
+
+API_VERSION = "1.0"
+
+__all__ = [
+    "API_VERSION", "hookimpl",
+    # components a plugin provides, and what they are given
+    "CheckScope", "FactorType", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
+    "RobotDescription", "Parameter", "Sensor",
+    # errors (one located line each)
+    "ConfigError", "DataError", "FusionkitError", "PluginError", "SolverError",
+    # variables and noise
+    "VarType", "vector_type", "POSE3", "POSE2", "POINT3", "POINT2", "ROT3", "SCALAR", "VELOCITY3", "IMU_BIAS",
+    "gaussian", "pose_sigmas", "pose_sigma_schema", "POSE_SIGMA_SCHEMA",
+    # streams and association with states
+    "Stream", "POSE_COLUMNS", "PLANAR_POSE_COLUMNS", "pose_stream", "pose_array_from", "poses_from_array",
+    "Association", "nearest", "interpolate_poses", "segment_ids",
+    # shared models
+    "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment",
+    "differential_drive_twist",
+    # simulator building blocks and the factor contract
+    "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",
+]

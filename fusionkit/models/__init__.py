@@ -1,0 +1,1 @@
+"""Models any plugin can build on: rate integration, planar kinematics (see fusionkit.api)."""
