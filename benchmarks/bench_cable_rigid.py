@@ -1,7 +1,7 @@
 """ARAS-CAM (docs/models/cable_rigid.md) on simulated sequences: accuracy against the published figures
 and speed against baselines measured in this process.
 
-Accuracy (fusionkit_plugins.cable_rigid.experiments, `cable.cdpr` simulator, 750 poses at 30 Hz):
+Accuracy (research/cable_rigid_experiments.py, `cable.cdpr` simulator, 750 poses at 30 Hz):
   thesis Table 4.1 -- position RMSE of forward kinematics alone, VO alone and the fused graph, per sequence
   (dynamic = 01, smooth = 12); the cable-length residual before/after refinement; the share of
   position errors inside 1/2/3 sigma pooled over the seeds; the gain of pulley pseudo-measurements.
@@ -24,9 +24,9 @@ import gtsam
 import numpy as np
 
 from fusionkit.pipeline import build_problem, read_sources
-from fusionkit_plugins.cable_rigid.experiments import (SEQUENCES, loaded_sequence, pseudo_measurement_gain,
-                                                       run_sequence, table_4_1)
 
+from research.cable_rigid_experiments import (SEQUENCES, loaded_sequence, pseudo_measurement_gain, run_sequence,
+                                              table_4_1)
 from _baselines import hand_fixed_lag, problem_data
 from _timing import ms, ratio, run_parts, table, timed
 

@@ -1,7 +1,7 @@
 """Sagging-cable robots (docs/models/cable_sag.md): accuracy against the published figures and speed
 against baselines measured in this process.
 
-Accuracy (fusionkit_plugins.cable_sag.experiments, `cable.sag_static` simulator):
+Accuracy (research/cable_sag_experiments.py, `cable.sag_static` simulator):
   thesis Table 5.2 -- mean absolute pulley and offset errors, large robot with 9, 18, 35 static poses and
   the small robot with 8, each averaged over random starts (up to 10 m / 1 m off), both robots at
   the vision noise of the source's public simulation code (the contract; the thesis states none:
@@ -29,14 +29,14 @@ import numpy as np
 
 from fusionkit.pipeline import build_problem, estimate
 from fusionkit.simulate import simulated_config
-from fusionkit.testing.external_data import external_data
-from fusionkit_plugins.cable_sag.experiments import (SCENARIO, SOURCE_CODE_POSE_SIGMA, SOURCE_TABLE_5_2, calibrate, errors,
-                                                     force_cross_validation, recurdyn_calibration,
-                                                     recurdyn_model_errors, recurdyn_poses, table_5_2)
-from fusionkit_plugins.cable_sag.lumped_mass import lumped_forward_pose
 from fusionkit_plugins.cable_sag.model import shipped_robot
 from fusionkit_plugins.cable_sag.static_solver import forward_pose, inverse_pose
 
+from research.cable_sag_experiments import (SCENARIO, SOURCE_CODE_POSE_SIGMA, SOURCE_TABLE_5_2, calibrate, errors,
+                                            force_cross_validation, recurdyn_calibration, recurdyn_model_errors,
+                                            recurdyn_poses, table_5_2)
+from research.external_data import external_data
+from research.lumped_mass import lumped_forward_pose
 from _timing import median_time, ratio, run_parts, table, timed
 
 FE_DATA = external_data("cdpr_recurdyn")

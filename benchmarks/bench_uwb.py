@@ -2,7 +2,7 @@
 self-calibration on the `uwb.sim` simulator and on the Labyrinth recordings, and speed against
 hand-written GTSAM loops in this process.
 
-Accuracy (fusionkit_plugins.uwb.experiments):
+Accuracy (research/uwb_experiments.py):
   position and bias RMSE for no bias / constant / time-varying bias on the same drifting data, with
   the estimator's noise levels equal to the simulator's (a self-consistency check) and misstated
   by x0.5 and x2 (all together, and ranges, bias drift, odometry one at a time);
@@ -26,10 +26,10 @@ import numpy as np
 
 from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
-from fusionkit.testing.external_data import external_data
-from fusionkit_plugins.uwb.experiments import SCENARIO, bias_models, labyrinth, per_epoch_multilateration, position_rmse
-from fusionkit_plugins.uwb.experiments import run as solve_case
 
+from research.external_data import external_data
+from research.uwb_experiments import SCENARIO, bias_models, labyrinth, per_epoch_multilateration, position_rmse
+from research.uwb_experiments import run as solve_case
 from _baselines import hand_fixed_lag, problem_data
 from _timing import ms, ratio, run_parts, table, timed
 

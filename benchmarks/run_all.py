@@ -41,7 +41,7 @@ def _git(*args: str) -> str:
 
 def header(quick: bool) -> str:
     import gtsam
-    dirty = _git("status", "--porcelain", "--", "fusionkit", "plugins")
+    dirty = _git("status", "--porcelain", "--", "fusionkit", "plugins", "benchmarks/research")
     gtsam_version = getattr(gtsam, "__version__", None)
     if gtsam_version is None:
         from importlib.metadata import version
@@ -55,7 +55,8 @@ def header(quick: bool) -> str:
         f"python {platform.python_version()}, gtsam {gtsam_version}, numpy {np.__version__}, "
         f"{os.cpu_count()} CPUs, {load}",
         f"fusionkit commit {_git('rev-parse', '--short', 'HEAD')}"
-        + (f" + uncommitted changes in {len(dirty.splitlines())} file(s) under fusionkit/ plugins/" if dirty else ""),
+        + (f" + uncommitted changes in {len(dirty.splitlines())} file(s) under fusionkit/ plugins/ "
+           "benchmarks/research/" if dirty else ""),
         "all ratios are fusionkit / hand-written (or / native), measured in this process; lower is better",
     ])
 

@@ -22,7 +22,8 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
 from .models.integration import held_intervals
 from .models.planar import differential_drive_twist, unicycle_increment
 from .robots.description import Parameter, RobotDescription, Sensor
-from .simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
+from .robots.registered import robot_description_data, robot_description_files
+from .models.simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
 from .testing import FactorExample
 
 API_VERSION = "1.0"
@@ -32,6 +33,8 @@ __all__ = [
     # components a plugin provides, and what they are given
     "CheckScope", "FactorType", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
     "RobotDescription", "Parameter", "Sensor",
+    # robot descriptions shipped as package data, by name
+    "robot_description_files", "robot_description_data",
     # errors (one located line each)
     "ConfigError", "DataError", "FusionkitError", "PluginError", "SolverError",
     # variables and noise

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from .config.yamlio import Document
@@ -35,8 +36,9 @@ class Spec:
     def type(self) -> str:
         return self.data["type"]
 
-    @property
+    @cached_property
     def label(self) -> str:
+        """`label:`, else `factors[2]:pose.relative` (computed once: an entry does not change after loading)."""
         return self.data.get("label") or f"{self.path[0]}[{self.path[1]}]:{self.type}"
 
     def __getitem__(self, key: str) -> Any:
@@ -74,7 +76,7 @@ class CheckScope:
         self.stream_origins: dict[str, str] = {}  # stream -> where it comes from, for messages
 
     def require_states(self, spec: Spec, robot_key: str, state_type: str | None = None) -> None:
-        """Error unless robot `spec[robot_key]` has states (of `state_type`: pose3 or pose2)."""
+        """Error unless robot `spec[robot_key]` has states (of `state_type`, e.g. pose3, pose2, vector6)."""
         robot = spec[robot_key]
         states = self.states.get(robot)
         if not states:
@@ -155,6 +157,7 @@ class SourceOutput:
     streams: dict[str, "Stream"]
     truth_trajectories: dict[str, "Stream"] | None = None
     truth_calibration: dict[str, dict[str, Any]] | None = None
+    truth_states: dict[str, dict[str, "Stream"]] | None = None  # robot -> state family -> true values
 
 
 class Source(Component):

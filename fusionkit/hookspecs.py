@@ -37,3 +37,10 @@ def register_initializers() -> list[type]:
 @hookspec
 def register_simulators() -> list[type]:
     """Return `fusionkit.Simulator` subclasses (synthetic datasets with truth)."""
+
+
+@hookspec
+def register_robot_descriptions() -> dict:
+    """Return {name: file} of robot descriptions shipped as package data (`importlib.resources`
+    files, e.g. `fusionkit.api.robot_description_files(__name__)`): a config names one by name
+    (`description: arascam`), a simulator reads one with `fusionkit.api.robot_description_data`."""

@@ -13,16 +13,18 @@ import numpy as np
 from .components import SourceOutput
 from .config.loader import RunConfig
 from .config.yamlio import load_yaml
-from .data.files import read_tum
+from .data.files import read_csv_stream, read_tum
 from .data.stream import Stream, pose_array_from, pose_stream
 from .errors import DataError, SolverError
 from .eval.parameters import parameter_errors
+from .eval.states import StateSeries, state_errors, state_series
 from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
 from .eval.timebase import check_truth_clock
 from .eval.trajectory import matched_positions, position_consistency, trajectory_errors
-from .graph.builder import BuildContext, Problem
+from .graph.builder import BuildContext, Problem, state_times
 from .graph.keys import STATE, TIME_VARYING, Family
+from .graph.variables import component_names
 from .plugins import registry
 from .progress import Progress
 from .threads import one_blas_thread
@@ -35,6 +37,14 @@ from .solve.result import SolveResult
 class Truth:
     trajectories: dict[str, Stream] = field(default_factory=dict)
     calibration: dict[str, dict[str, Any]] = field(default_factory=dict)
+    states: dict[str, dict[str, Stream]] = field(default_factory=dict)  # robot -> family -> true values
+
+    def families(self, config: RunConfig) -> set[tuple[str, str]]:
+        """(robot, family) of the per-state families with truth: those of `states`, and the state family
+        of each robot with a true trajectory."""
+        clocked = {r: setup.states["family"] for r, setup in config.robots.items() if setup.states}
+        return ({(r, f) for r, fams in self.states.items() for f in fams}
+                | {(r, clocked[r]) for r in self.trajectories if r in clocked})
 
 
 @dataclass
@@ -61,6 +71,7 @@ class RunResult:
     evaluation: dict[str, Any]
     timings: dict[str, float]
     streams: dict[str, Stream] = field(default_factory=dict)  # the data the graph was built from
+    states: dict[tuple[str, str], StateSeries] = field(default_factory=dict)  # (robot, family) -> series
 
     @property
     def notes(self) -> list[str]:
@@ -88,6 +99,8 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
         streams.update(out.streams)
         truth.trajectories.update(out.truth_trajectories or {})
         truth.calibration.update(out.truth_calibration or {})
+        for robot, families in (out.truth_states or {}).items():
+            truth.states.setdefault(robot, {}).update(families)
     for name, cols in config.stream_columns.items():
         if name not in streams:
             raise DataError(f"sources[{config.stream_source[name]}] did not produce stream {name!r}")
@@ -95,10 +108,14 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
         truth.trajectories[robot] = read_tum(config.resolve(file), f"truth:{robot}")
     if "calibration" in config.truth:
         truth.calibration.update(calibration_entries(load_yaml(config.resolve(config.truth["calibration"]))))
+    for robot, families in (config.truth.get("states") or {}).items():
+        for family, file in families.items():
+            truth.states.setdefault(robot, {})[family] = read_csv_stream(config.resolve(file), f"truth:{robot}.{family}")
     for robot, ref in truth.trajectories.items():
         states = robot in config.robots and config.robots[robot].states
         if states:
-            check_truth_clock(ref, robot, streams[states["stream"]], states.get("every", 1))
+            clock = f"stream {states['stream']!r}" if "stream" in states else f"{states['rate']} Hz"
+            check_truth_clock(ref, robot, state_times(states, streams), clock)
     return streams, truth
 
 
@@ -121,21 +138,27 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
     return ctx.problem()
 
 
-def _marginal_keys(problem: Problem, with_states: bool) -> set[int]:
+def _marginal_keys(problem: Problem, state_families: set[tuple[str, str]] | bool) -> set[int]:
+    """Every parameter, and the per-state variables of `state_families` ((robot, family) pairs, or all
+    of them with True): those with truth to check their sigmas against, or all when asked."""
     keys = set()
     for k in problem.initial.keys():
         if k in problem.fixed_keys:
             continue  # held at its value: no uncertainty to report
         fam = problem.keys.decode(k)[0]
-        if fam.kind != STATE or (with_states and fam.name == "pose"):
+        if fam.kind != STATE or state_families is True or (fam.robot, fam.name) in state_families:
             keys.add(k)
     return keys
 
 
 def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarray]):
+    """Trajectories (TUM-ready pose streams) of the robots whose states are poses, with the position
+    1-sigma along the world axes where covariances exist; other state types are reported as series."""
     trajs, sigmas = {}, {}
     for robot, states in problem.states.items():
         vt = states.family.vartype
+        if vt.name not in ("pose3", "pose2"):
+            continue
         # only states some factor declared a pose for (a robot may have parameters only, or
         # states outside the span of its pose streams)
         ks = [k for k in range(len(states)) if values.exists(states.key(k))]
@@ -251,8 +274,7 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     problem = build_problem(config, streams, progress)
     timings["build_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    marginal_keys = _marginal_keys(problem, with_states=bool(truth.trajectories)
-                                   or config.output.get("state_covariances", False))
+    marginal_keys = _marginal_keys(problem, config.output.get("state_covariances", False) or truth.families(config))
     if config.refined_factors:
         problem, solution = _solve_refined(config, streams, problem, marginal_keys, progress)
     else:
@@ -262,8 +284,28 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
     parameters = _parameters(problem, solution.values, solution.covariances)
+    states = state_series(problem, solution.values, solution.covariances)
     evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)
+    evaluation.update(_state_evaluation(states, truth))
     evaluation["residuals_by_entry"] = residuals_by_entry(problem, solution.values)
     return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
-                     timings, streams)
+                     timings, streams, states)
+
+
+def _state_evaluation(states: dict[tuple[str, str], StateSeries], truth: Truth) -> dict:
+    """{"states": robot -> family -> errors} for each family with a truth series."""
+    out: dict[str, dict] = {}
+    for robot, families in truth.states.items():
+        for family, ref in families.items():
+            series = states.get((robot, family))
+            if series is None:
+                raise DataError(f"{ref.origin or ref.name}: truth for {robot}.{family}, but robot {robot!r} has no "
+                                f"state family {family!r} (it has: "
+                                f"{', '.join(f for r, f in states if r == robot) or 'none'})")
+            try:
+                out.setdefault(robot, {})[family] = state_errors(series, ref)
+            except ValueError as exc:
+                raise DataError(f"{ref.origin or ref.name}: {exc}; expected columns t, "
+                                f"{', '.join(component_names(series.vartype)[0])}") from None
+    return {"states": out} if out else {}
 

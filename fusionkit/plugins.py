@@ -7,12 +7,14 @@ import importlib.metadata
 import os
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import pluggy
 
 from . import hookspecs
 from .components import FactorType, Initializer, RobotModel, Simulator, Source
 from .errors import PluginError
+from .robots.registered import KIND as DESCRIPTIONS, is_description_name
 
 ENTRY_POINT_GROUP = "fusionkit"
 BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not to load
@@ -31,26 +33,29 @@ KINDS = {
     "initializers": ("register_initializers", Initializer),
     "simulators": ("register_simulators", Simulator),
 }
+# everything a plugin registers: the component classes, and robot descriptions ({name: file})
+REGISTRATIONS = {**KINDS, DESCRIPTIONS: ("register_robot_descriptions", None)}
 
 
 @dataclass
 class Registry:
-    """Every registered component by kind and name, which plugin provided it, and the installed
-    plugins that failed to load (each a one-line reason naming its distribution and entry point)."""
+    """Every registered component by kind and name (and every robot description file, kind
+    "robot_descriptions"), which plugin provided it, and the installed plugins that failed to load
+    (each a one-line reason naming its distribution and entry point)."""
 
-    components: dict[str, dict[str, type]] = field(default_factory=lambda: {k: {} for k in KINDS})
+    components: dict[str, dict[str, Any]] = field(default_factory=lambda: {k: {} for k in REGISTRATIONS})
     provider: dict[tuple[str, str], str] = field(default_factory=dict)
     plugins: list[str] = field(default_factory=list)
     broken: list[str] = field(default_factory=list)
 
-    def get(self, kind: str, name: str) -> type | None:
+    def get(self, kind: str, name: str) -> Any:
         return self.components[kind].get(name)
 
     def names(self, kind: str) -> list[str]:
         return sorted(self.components[kind])
 
     def by_plugin(self) -> dict[str, dict[str, list[str]]]:
-        out: dict[str, dict[str, list[str]]] = {p: {k: [] for k in KINDS} for p in self.plugins}
+        out: dict[str, dict[str, list[str]]] = {p: {k: [] for k in REGISTRATIONS} for p in self.plugins}
         for (kind, name), plugin in sorted(self.provider.items()):
             out[plugin][kind].append(name)
         return out
@@ -105,18 +110,37 @@ def _plugin_manager(broken: list[str] | None = None) -> pluggy.PluginManager:
     return pm
 
 
-def _provided(impl, pname: str, hook_name: str, base: type) -> list[type]:
-    """What one plugin's registration hook returns, checked; PluginError when it fails or returns
-    something that is not a named subclass of `base`."""
+def _provided(impl, pname: str, hook_name: str, base: type | None) -> list[tuple[str, Any]]:
+    """(name, component) of what one plugin's registration hook returns, checked; PluginError when
+    it fails or returns something that is not a named subclass of `base` (base None: robot
+    description files, {name: file})."""
     try:
-        provided = list(impl() or [])
+        provided = impl()
     except Exception as exc:
         raise PluginError(f"plugin {pname}: {hook_name}() failed: {exc.__class__.__name__}: {exc}") from exc
+    if base is None:
+        return _description_files(provided, pname, hook_name)
+    provided = list(provided or [])
     for cls in provided:
         if not (isinstance(cls, type) and issubclass(cls, base)) or not cls.name:
             raise PluginError(f"plugin {pname}: {hook_name} returned {cls!r}; expected a "
                               f"{base.__name__} subclass with a name")
-    return provided
+    return [(cls.name, cls) for cls in provided]
+
+
+def _description_files(provided, pname: str, hook_name: str) -> list[tuple[str, Any]]:
+    """{name: file} checked: names a config can give (no path separator, no .yaml suffix), files
+    that exist (`importlib.resources` files or paths)."""
+    if not isinstance(provided, dict):
+        raise PluginError(f"plugin {pname}: {hook_name} returned {provided!r}; expected {{name: file}}")
+    for name, file in provided.items():
+        if not (isinstance(name, str) and name and is_description_name(name)):
+            raise PluginError(f"plugin {pname}: {hook_name} returned the name {name!r}; expected a name "
+                              "without a path separator or .yaml/.yml suffix")
+        if not (hasattr(file, "is_file") and hasattr(file, "read_text") and file.is_file()):
+            raise PluginError(f"plugin {pname}: {hook_name} returned {file!r} for {name!r}; expected an "
+                              "existing file (e.g. importlib.resources.files(package) / 'robots' / 'x.yaml')")
+    return list(provided.items())
 
 
 def build_registry(pm: pluggy.PluginManager, broken: list[str] | None = None) -> Registry:
@@ -126,31 +150,30 @@ def build_registry(pm: pluggy.PluginManager, broken: list[str] | None = None) ->
     reg = Registry(broken=list(broken or []))
     # only functions marked @hookimpl count (not any attribute that happens to have a hook's name)
     impls = {kind: {i.plugin_name: i.function for i in getattr(pm.hook, hook_name).get_hookimpls()}
-             for kind, (hook_name, _) in KINDS.items()}
-    for plugin in pm.get_plugins():
-        pname = pm.get_name(plugin)
+             for kind, (hook_name, _) in REGISTRATIONS.items()}
+    for pname, _ in pm.list_name_plugin():  # registration order: built-ins first, so they win a clash
         try:
             provided = {kind: _provided(impls[kind][pname], pname, hook_name, base)
-                        for kind, (hook_name, base) in KINDS.items() if pname in impls[kind]}
-            for kind, classes in provided.items():
-                names = [cls.name for cls in classes]
-                for i, cls in enumerate(classes):
-                    if cls.name in names[:i]:
-                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {cls.name!r} is "
+                        for kind, (hook_name, base) in REGISTRATIONS.items() if pname in impls[kind]}
+            for kind, items in provided.items():
+                names = [name for name, _ in items]
+                for i, name in enumerate(names):
+                    if name in names[:i]:
+                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {name!r} is "
                                           "registered twice")
-                    if cls.name in reg.components[kind]:
-                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {cls.name!r} is "
-                                          f"already provided by {reg.provider[(kind, cls.name)]}")
+                    if name in reg.components[kind]:
+                        raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {name!r} is "
+                                          f"already provided by {reg.provider[(kind, name)]}")
         except PluginError as exc:
             if pname in DEFAULT_PLUGINS:
                 raise
             reg.broken.append(str(exc))
             continue
         reg.plugins.append(pname)
-        for kind, classes in provided.items():
-            for cls in classes:
-                reg.components[kind][cls.name] = cls
-                reg.provider[(kind, cls.name)] = pname
+        for kind, items in provided.items():
+            for name, component in items:
+                reg.components[kind][name] = component
+                reg.provider[(kind, name)] = pname
     return reg
 
 

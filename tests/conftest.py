@@ -1,4 +1,6 @@
-"""Shared helpers: configs and data files in a temporary folder, and a registry with extra plugins."""
+"""Shared helpers: configs and data files in a temporary folder, and a registry with extra plugins.
+The research code beside the benchmarks (benchmarks/research/: experiments, baselines, reference
+models, external data) is imported as `research.<module>`."""
 
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ import yaml
 import fusionkit.plugins
 from fusionkit.data.files import write_csv_stream, write_tum
 from fusionkit.data.stream import Stream, pose_stream
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
 class Workspace:

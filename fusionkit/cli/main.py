@@ -108,23 +108,32 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def _listed(reg, kind: str, name: str) -> dict:
+    """One registered item for `fusionkit plugins`: a component's summary and schema, or a robot
+    description's summary and file."""
+    from ..robots.registered import KIND as DESCRIPTIONS, robot_description_data
+    if kind == DESCRIPTIONS:
+        return {"name": name, "summary": str(robot_description_data(name).get("summary", "")),
+                "file": str(reg.get(kind, name))}
+    return {"name": name, "summary": reg.get(kind, name).summary, "schema": reg.get(kind, name).schema}
+
+
 def cmd_plugins(args) -> int:
-    from ..plugins import KINDS, registry
+    from ..plugins import REGISTRATIONS, registry
 
     reg = registry()
     listing = {}
     for plugin, provided in reg.by_plugin().items():
-        listing[plugin] = {kind: [{"name": n, "summary": reg.get(kind, n).summary,
-                                   "schema": reg.get(kind, n).schema} for n in names]
-                           for kind, names in provided.items() if names}
+        listing[plugin] = {kind: [_listed(reg, kind, n) for n in names] for kind, names in provided.items() if names}
     if args.json:
         print(json.dumps(listing, indent=2))
         return 0
     for plugin, provided in listing.items():
         print(plugin)
-        for kind in KINDS:
+        for kind in REGISTRATIONS:
+            label = "description" if kind == "robot_descriptions" else kind[:-1].replace("_", " ")
             for item in provided.get(kind, []):
-                print(f"  {kind[:-1].replace('_', ' '):<12} {item['name']:<28} {item['summary']}")
+                print(f"  {label:<12} {item['name']:<28} {item['summary']}")
     return 0
 
 

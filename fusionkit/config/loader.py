@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ..components import CheckScope, Spec
+from ..graph.variables import vartype_named
 from ..robots.calibration_file import apply_calibration, calibration_entries
 from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
 from .overrides import apply_override, new_key_note, parse_key_path
@@ -114,7 +115,7 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
     robots = {}
     for name, raw in doc.data["robots"].items():
         path = ("robots", name)
-        desc = load_description(raw["description"], base, doc, path + ("description",))
+        desc = load_description(raw["description"], base, doc, path + ("description",), reg)
         model = reg.get("robot_models", desc.model)
         if model is None:
             raise desc.error(("model",), reg.unknown("robot_models", desc.model))
@@ -131,6 +132,31 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
             apply_calibration(desc, entries.get(name, {}), cal, name)
         robots[name] = RobotSetup(name, desc, raw.get("states"))
     return robots
+
+
+def _state_clock(doc: Document, robot: str, raw: dict, streams: dict[str, tuple[str, ...]]) -> dict:
+    """A robot's `states:` checked and completed with its defaults: the variable type (pose3) and the
+    family name ("pose" for pose types, else "state"); stamps of a stream (every `every`-th sample),
+    or a fixed `rate` (Hz) over [start, end] (s) or over the stream's span."""
+    path = ("robots", robot, "states")
+    if "stream" in raw and raw["stream"] not in streams:
+        raise doc.error(path + ("stream",), f"unknown stream {raw['stream']!r}; the sources provide: "
+                        f"{', '.join(sorted(streams)) or '(none)'}")
+    if "stream" not in raw and not {"rate", "start", "end"} <= set(raw):
+        raise doc.error(path, "expected `stream:` (one state per sample), or `rate:` (Hz) with `start:` and `end:` "
+                        "(s) or with `stream:` (its time span)")
+    if "rate" in raw and "every" in raw:
+        raise doc.error(path + ("every",), "`every` thins a stream's stamps; with `rate:` the states are already "
+                        "evenly spaced: drop one of them")
+    if "start" in raw and "end" in raw and raw["end"] <= raw["start"]:
+        raise doc.error(path + ("end",), f"end {raw['end']} is not after start {raw['start']}")
+    try:
+        vartype = vartype_named(raw.get("type", "pose3"))
+    except ValueError as exc:
+        raise doc.error(path + ("type",), str(exc)) from None
+    raw.setdefault("family", "pose" if vartype.name in ("pose3", "pose2") else "state")
+    raw["type"] = vartype.name
+    return raw
 
 
 def _require_file(doc: Document, path: tuple, file: Path) -> None:
@@ -178,10 +204,8 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
     scope.stream_columns = streams
 
     for name, setup in robots.items():
-        if setup.states and setup.states["stream"] not in streams:
-            raise doc.error(("robots", name, "states", "stream"),
-                            f"unknown stream {setup.states['stream']!r}; the sources provide: "
-                            f"{', '.join(sorted(streams)) or '(none)'}")
+        if setup.states:
+            setup.states = _state_clock(doc, name, setup.states, streams)
 
     factors = specs_of(doc, "factors")
     factor_objs = _check_entries(doc, factors, "factor_types", reg, FACTOR_KEYS)
@@ -201,6 +225,12 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
         _require_file(doc, ("truth", "trajectories", robot), base / file)
     if "calibration" in truth:
         _require_file(doc, ("truth", "calibration"), base / truth["calibration"])
+    for robot, families in (truth.get("states") or {}).items():
+        if robot not in robots:
+            raise doc.error(("truth", "states", robot), f"unknown robot {robot!r}; the config defines: "
+                            f"{', '.join(robots)}")
+        for family, file in families.items():
+            _require_file(doc, ("truth", "states", robot, family), base / file)
 
     return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
                      robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,

@@ -14,8 +14,11 @@ from .stream import POSE_COLUMNS, Stream, check_samples
 
 
 def _read_text(path: Path) -> str:
+    """The file as text with \\n line ends, as open() reads it; a byte-order mark (Excel) is dropped."""
     try:
-        return path.read_text(encoding="utf-8-sig")  # a byte-order mark (Excel) is not part of the header
+        data = path.read_bytes()
+        # ASCII (most data files) decodes some 20x faster than UTF-8 and cannot hold a byte-order mark
+        text = data.decode("ascii") if data.isascii() else data.decode("utf-8-sig")
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
     except IsADirectoryError:
@@ -26,6 +29,7 @@ def _read_text(path: Path) -> str:
             from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
+    return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text else text
 
 
 # |norm - 1| above this is not rounding: quaternions printed with 4 decimals are within 1e-4 of unit
@@ -49,11 +53,12 @@ def check_seconds(origin: str, t: np.ndarray) -> None:
                     f"{step:.3g}); fusionkit expects seconds: divide t by {factor}")
 
 
-def unit_quaternions(q: np.ndarray, origin: str, locate: Callable[[int], str]) -> str | None:
+def unit_quaternions(q: np.ndarray, origin: str, locate: Callable[[int], str],
+                     norms: np.ndarray | None = None) -> str | None:
     """Scale to unit norm, in place, the rows of q (N x 4, qx qy qz qw) whose norm is off 1 by more than
     QUATERNION_NORM_TOLERANCE (the others are left as read); a note counting them (`locate(i)` words
-    where row i is), or None."""
-    norms = np.linalg.norm(q, axis=1)
+    where row i is), or None. `norms`: np.linalg.norm(q, axis=1), when the caller has it."""
+    norms = np.linalg.norm(q, axis=1) if norms is None else norms
     off = np.abs(norms - 1.0)
     bad = off > QUATERNION_NORM_TOLERANCE
     if not bad.any():
@@ -62,6 +67,34 @@ def unit_quaternions(q: np.ndarray, origin: str, locate: Callable[[int], str]) -
     return (f"{origin}: {int(bad.sum())} of {len(q)} quaternions had a norm off 1 by more than "
             f"{QUATERNION_NORM_TOLERANCE:g} (largest {off.max():.3g}, first at {locate(int(np.argmax(bad)))}); "
             "renormalized")
+
+
+def _first_content_line(text: str) -> tuple[int, int]:
+    """(offset, line number) of the first line of `text` that is neither blank nor a `#` comment
+    (offset len(text) when there is none)."""
+    offset, line = 0, 1
+    while offset < len(text):
+        end = text.find("\n", offset)
+        end = len(text) if end < 0 else end
+        s = text[offset:end].strip()
+        if s and not s.startswith("#"):
+            break
+        offset, line = end + 1, line + 1
+    return min(offset, len(text)), line
+
+
+def _plain_rows(body: str, width: int, delimiter: str | None) -> np.ndarray | None:
+    """The rows of `body` when every line is `width` numbers (no comment, blank or quoted line),
+    parsed by numpy in C (it reads numbers exactly as float() does); None otherwise: the caller
+    then reads line by line, to say where a line is wrong."""
+    if not body.strip() or "#" in body or '"' in body:
+        return None
+    try:  # numpy reads bytes a little faster than text
+        a = np.loadtxt(io.BytesIO(body.encode()), delimiter=delimiter, comments=None, ndmin=2, dtype=float)
+    except ValueError:
+        return None
+    lines = body.count("\n") + (not body.endswith("\n"))
+    return a if a.shape == (lines, width) else None
 
 
 def _is_data(row: list[str]) -> bool:
@@ -98,30 +131,12 @@ def read_csv_header(path: Path) -> tuple[str, ...]:
 def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
     """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
     text = _read_text(path)
-    reader = csv.reader(io.StringIO(text))
-    rows, lines = [], []  # data rows and their line numbers (comments and blank lines are skipped)
-    for row in reader:
-        if _is_data(row):
-            rows.append(row)
-            lines.append(reader.line_num)
-    if not rows:
-        raise DataError(f"{path}: empty file; expected a header row starting with 't'")
-    header = [h.strip() for h in rows[0]]
-    _check_header(path, lines[0], header)
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise DataError(f"{path}:{lines[0]}: missing column(s) {', '.join(missing)}; header has "
-                        f"{','.join(header)}, expected at least t,{','.join(required)}")
-    width = len(header)
-    data = np.empty((len(rows) - 1, width))
-    for i, (row, line) in enumerate(zip(rows[1:], lines[1:])):
-        if len(row) != width:
-            raise DataError(f"{path}:{line}: row has {len(row)} columns; header has {width} ({','.join(header)})")
-        try:
-            data[i] = [float(c) for c in row]
-        except ValueError:
-            j = next(j for j, c in enumerate(row) if not _is_float(c))
-            raise DataError(f"{path}:{line}: column {header[j]!r} has {row[j].strip()!r}; expected a number") from None
+    plain = _plain_csv(text)
+    if plain is None:
+        header, data, lines = _csv_rows(path, text, required)
+    else:
+        header, data, lines = plain
+        _check_columns(path, lines[0], header, required)
     check_samples(data[:, 0], data[:, 1:], str(path), lines=np.asarray(lines[1:]))
     check_seconds(f"{path}:{lines[1]}", data[:, 0])
     stream = Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
@@ -132,6 +147,52 @@ def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> St
         stream.values[:, q] = quats
         stream.notes += [note] if note else []
     return stream
+
+
+def _check_columns(path: Path, line: int, header: list[str], required: tuple[str, ...]) -> None:
+    _check_header(path, line, header)
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise DataError(f"{path}:{line}: missing column(s) {', '.join(missing)}; header has "
+                        f"{','.join(header)}, expected at least t,{','.join(required)}")
+
+
+def _plain_csv(text: str) -> tuple[list[str], np.ndarray, np.ndarray] | None:
+    """(header, rows, line numbers of the header and the rows) when the file is `#`/blank lines, an
+    unquoted header, then plain numeric rows (see _plain_rows); None otherwise."""
+    offset, first = _first_content_line(text)
+    end = text.find("\n", offset)
+    if end < 0 or '"' in text[offset:end]:
+        return None
+    header = [h.strip() for h in text[offset:end].split(",")]
+    data = _plain_rows(text[end + 1:], len(header), ",") if _is_data(header) else None
+    return None if data is None else (header, data, first + np.arange(len(data) + 1))
+
+
+def _csv_rows(path: Path, text: str, required: tuple[str, ...]) -> tuple[list[str], np.ndarray, list[int]]:
+    """(header, rows, line numbers of the header and the rows) read with the csv module, row by row,
+    with a located error for a bad header or row."""
+    reader = csv.reader(io.StringIO(text))
+    rows, lines = [], []  # data rows and their line numbers (comments and blank lines are skipped)
+    for row in reader:
+        if _is_data(row):
+            rows.append(row)
+            lines.append(reader.line_num)
+    if not rows:
+        raise DataError(f"{path}: empty file; expected a header row starting with 't'")
+    header = [h.strip() for h in rows[0]]
+    _check_columns(path, lines[0], header, required)
+    width = len(header)
+    data = np.empty((len(rows) - 1, width))
+    for i, (row, line) in enumerate(zip(rows[1:], lines[1:])):
+        if len(row) != width:
+            raise DataError(f"{path}:{line}: row has {len(row)} columns; header has {width} ({','.join(header)})")
+        try:
+            data[i] = [float(c) for c in row]
+        except ValueError:
+            j = next(j for j, c in enumerate(row) if not _is_float(c))
+            raise DataError(f"{path}:{line}: column {header[j]!r} has {row[j].strip()!r}; expected a number") from None
+    return header, data, lines
 
 
 def write_csv_stream(path: Path, stream: Stream) -> None:
@@ -154,6 +215,25 @@ def _is_float(text: str) -> bool:
 def read_tum(path: Path, name: str) -> Stream:
     """TUM trajectory: `t x y z qx qy qz qw` per line, space separated, `#` comments."""
     text = _read_text(path)
+    offset, first = _first_content_line(text)
+    a = _plain_rows(text[offset:], 8, None)
+    if a is None:
+        a, lines = _tum_rows(path, text)
+    else:
+        lines = first + np.arange(len(a))
+    norms = np.linalg.norm(a[:, 4:], axis=1)
+    if np.any(norms < 1e-9):
+        bad = int(np.argmax(norms < 1e-9))
+        raise DataError(f"{path}:{lines[bad]}: {int(np.sum(norms < 1e-9))} row(s) have a zero quaternion (first "
+                        f"at line {lines[bad]}); expected a unit quaternion qx qy qz qw")
+    check_samples(a[:, 0], a[:, 1:], str(path), lines=lines)
+    check_seconds(f"{path}:{lines[0]}", a[:, 0])
+    note = unit_quaternions(a[:, 4:], str(path), lambda i: f"line {lines[i]}", norms)
+    return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path), [note] if note else [])
+
+
+def _tum_rows(path: Path, text: str) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, their line numbers) of a TUM file read line by line, with a located error for a bad line."""
     rows, lines = [], []
     for n, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
@@ -171,16 +251,7 @@ def read_tum(path: Path, name: str) -> Stream:
         lines.append(n)
     if not rows:
         raise DataError(f"{path}: no poses; expected lines 't x y z qx qy qz qw'")
-    a = np.asarray(rows)
-    norms = np.linalg.norm(a[:, 4:], axis=1)
-    if np.any(norms < 1e-9):
-        bad = int(np.argmax(norms < 1e-9))
-        raise DataError(f"{path}:{lines[bad]}: {int(np.sum(norms < 1e-9))} row(s) have a zero quaternion (first "
-                        f"at line {lines[bad]}); expected a unit quaternion qx qy qz qw")
-    check_samples(a[:, 0], a[:, 1:], str(path), lines=np.asarray(lines))
-    check_seconds(f"{path}:{lines[0]}", a[:, 0])
-    note = unit_quaternions(a[:, 4:], str(path), lambda i: f"line {lines[i]}")
-    return Stream(name, a[:, 0], POSE_COLUMNS, a[:, 1:], str(path), [note] if note else [])
+    return np.asarray(rows), np.asarray(lines)
 
 
 def write_tum(path: Path, stream: Stream) -> None:

@@ -15,7 +15,8 @@ PLANAR_POSE_COLUMNS = ("x", "y", "theta")
 
 @dataclass
 class Stream:
-    """N samples: times `t` (s, strictly increasing) and `values` (N x len(columns))."""
+    """N samples: times `t` (s, strictly increasing) and `values` (N x len(columns)); not modified
+    once read (its poses are converted once)."""
 
     name: str
     t: np.ndarray
@@ -23,6 +24,7 @@ class Stream:
     values: np.ndarray
     origin: str = ""
     notes: list[str] = field(default_factory=list, compare=False)  # what reading it corrected, for the report
+    _poses: list | None = field(default=None, init=False, repr=False, compare=False)  # poses(), made once
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, dtype=float).reshape(-1)
@@ -50,7 +52,10 @@ class Stream:
         return a
 
     def poses(self) -> list[gtsam.Pose3]:
-        return poses_from_array(self.pose_array())
+        """The rows as Pose3 (a new list; converted on the first call only)."""
+        if self._poses is None:
+            self._poses = poses_from_array(self.pose_array())
+        return list(self._poses)
 
     def subset(self, rows: np.ndarray) -> "Stream":
         return Stream(self.name, self.t[rows], self.columns, self.values[rows], self.origin)
@@ -58,7 +63,8 @@ class Stream:
 
 def poses_from_array(a: np.ndarray) -> list[gtsam.Pose3]:
     """(N, 7) x y z qx qy qz qw -> Pose3 list."""
-    return [gtsam.Pose3(gtsam.Rot3.Quaternion(r[6], r[3], r[4], r[5]), r[:3]) for r in a]
+    a, pose, quaternion = np.asarray(a, dtype=float), gtsam.Pose3, gtsam.Rot3.Quaternion
+    return [pose(quaternion(qw, qx, qy, qz), t) for (qx, qy, qz, qw), t in zip(a[:, 3:].tolist(), a[:, :3])]
 
 
 def pose_array_from(poses: list[gtsam.Pose3]) -> np.ndarray:
@@ -86,7 +92,8 @@ def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: in
     if len(t) == 0:
         raise DataError(f"{origin}: no samples (expected at least one data row)")
     line_of = (lambda i: int(lines[i])) if lines is not None else (lambda i: first_line + i)
-    bad = ~np.isfinite(t) | ~np.all(np.isfinite(values), axis=1)
+    finite = np.isfinite(np.sum(t) + np.sum(values))  # False for any NaN or inf (or a sum that overflows)
+    bad = np.zeros(len(t), dtype=bool) if finite else ~np.isfinite(t) | ~np.all(np.isfinite(values), axis=1)
     if bad.any():
         first = line_of(int(np.argmax(bad)))
         raise DataError(f"{origin}:{first}: {int(bad.sum())} row(s) contain NaN or "

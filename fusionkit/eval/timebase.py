@@ -26,15 +26,14 @@ def _clock_hint(a: np.ndarray, b: np.ndarray) -> str:
             "recording's start time from the Unix stamps, or add it to the others")
 
 
-def check_truth_clock(truth: Stream, robot: str, clock: Stream, every: int = 1) -> None:
-    """DataError unless some state of `robot` (every `every`-th sample of its `clock` stream) has a
-    truth pose within MATCH_TOLERANCE; names the truth's origin and both time ranges."""
-    states_t = clock.t[::every]
+def check_truth_clock(truth: Stream, robot: str, states_t: np.ndarray, clock: str) -> None:
+    """DataError unless some state of `robot` (at `states_t`, clocked by `clock`, e.g. "stream 'vo'")
+    has a truth pose within MATCH_TOLERANCE; names the truth's origin and both time ranges."""
     if len(nearest(states_t, truth.t, MATCH_TOLERANCE).row):
         return
     overlap = truth.t[0] <= states_t[-1] and states_t[0] <= truth.t[-1]
     why = (f"no truth pose is within {MATCH_TOLERANCE} s of a state" if overlap else "the time ranges do not overlap")
     raise DataError(f"{truth.origin or truth.name}: truth of robot {robot!r} spans t = {truth.t[0]:.3f} .. "
-                    f"{truth.t[-1]:.3f} s, its states (stream {clock.name!r}) t = {states_t[0]:.3f} .. "
+                    f"{truth.t[-1]:.3f} s, its states ({clock}) t = {states_t[0]:.3f} .. "
                     f"{states_t[-1]:.3f} s: {why}; expected truth stamped on the same clock in seconds"
                     f"{_clock_hint(truth.t, states_t)}")

@@ -17,10 +17,22 @@ from ..errors import PluginError
 from ..robots.description import Parameter, RobotDescription
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, with_kernel
-from .variables import POSE2, POSE3, VarType
+from .variables import VarType, vartype_named
 
 STATIC_TIME = float("-inf")
 FIXED_SIGMA = 1e-9  # prior sigma (per tangent axis, SI units) that holds a `fixed: true` parameter
+
+
+def state_times(states: dict, streams: dict[str, Stream]) -> np.ndarray:
+    """The times (s) of a robot's states from its (completed) `states:` settings: every `every`-th
+    stamp of `stream`, or `rate` Hz from `start` to `end` (default: the stream's first and last stamp)."""
+    if "rate" not in states:
+        return streams[states["stream"]].t[:: states.get("every", 1)]
+    span = streams[states["stream"]].t if "stream" in states else None
+    start = states.get("start", span[0] if span is not None else 0.0)
+    end = states.get("end", span[-1] if span is not None else start)
+    count = int(np.floor((end - start) * states["rate"] + 1e-9)) + 1
+    return start + np.arange(count) / states["rate"]
 
 
 @dataclass
@@ -38,7 +50,7 @@ class StateSet:
         return self.family.key(k)
 
 
-@dataclass
+@dataclass(slots=True)
 class FactorRecord:
     """A factor with the entry that made it and the time at which an incremental solver adds it."""
 
@@ -80,8 +92,9 @@ class BuildContext:
         self.streams = streams
         self.keys = KeyRegistry()
         self.records: list[FactorRecord] = []
-        self.initial = gtsam.Values()
-        self.key_time: dict[int, float] = {}
+        self._values = gtsam.Values()
+        self._pending: dict[int, Any] = {}  # declared variables not yet inserted into _values
+        self.key_time: dict[int, float] = {}  # every declared variable -> the time it belongs to
         self.notes: list[str] = list(config.notes)
         self.diagnostics: dict[str, dict] = {}
         self.plots: dict[str, Callable[[Path], None]] = {}
@@ -92,10 +105,9 @@ class BuildContext:
         self.current_initializer = ""
         for name, setup in config.robots.items():
             if setup.states:
-                clock = streams[setup.states["stream"]]
-                t = clock.t[:: setup.states.get("every", 1)]
-                vt = POSE2 if setup.states.get("type") == "pose2" else POSE3
-                self.states[name] = StateSet(name, t, self.keys.family(name, "pose", vt, STATE))
+                vt = vartype_named(setup.states["type"])
+                family = self.keys.family(name, setup.states["family"], vt, STATE)
+                self.states[name] = StateSet(name, state_times(setup.states, streams), family)
 
     # --- robots, streams, states -------------------------------------------------------------
     def robot(self, name: str) -> RobotDescription:
@@ -114,22 +126,60 @@ class BuildContext:
         return float(self.states[robot].t[k])
 
     # --- variables ---------------------------------------------------------------------------
+    @property
+    def initial(self) -> gtsam.Values:
+        """Initial values of every declared variable. A declaration waits in a dict until this is
+        read, so a value an initializer sets before then costs one insert, not an insert and an update."""
+        if self._pending:
+            for key, value in self._pending.items():
+                self._values.insert(key, value)
+            self._pending.clear()
+        return self._values
+
+    def has_variable(self, key: int) -> bool:
+        """Whether a factor (or initializer) declared variable `key`."""
+        return key in self.key_time
+
+    def initial_value(self, key: int) -> Any:
+        """The current initial value of declared variable `key` (as its type reads from gtsam.Values)."""
+        if key in self._pending:
+            self._values.insert(key, self._pending.pop(key))
+        return self.keys.decode(key)[0].vartype.read(self._values, key)
+
     def _declare(self, key: int, initial: Any, time: float) -> int:
-        if not self.initial.exists(key):
-            self.initial.insert(key, initial)
+        if key not in self.key_time:
             self.key_time[key] = time
+            self._pending[key] = initial.copy() if isinstance(initial, np.ndarray) else initial
         return key
 
     def state_variable(self, robot: str, family: str, vartype: VarType, k: int, initial: Any = None) -> int:
         """A per-state variable of another family (velocity, bias, joints) at state k."""
-        fam = self.keys.family(robot, family, vartype, STATE)
-        return self._declare(fam.key(k), vartype.zero() if initial is None else initial,
-                             self.state_time(robot, k))
+        key = self.keys.family(robot, family, vartype, STATE).key(k)
+        if key not in self.key_time:
+            self._declare(key, vartype.zero() if initial is None else initial, self.state_time(robot, k))
+        return key
+
+    def state_key(self, robot: str, k: int) -> int:
+        """The robot's state variable at state k (its `states:` type and family; declared with the
+        type's zero -- identity pose, zero vector -- until initialized)."""
+        s = self.states[robot]
+        key = s.family.key(k)
+        if key not in self.key_time:
+            self._declare(key, s.family.vartype.zero(), float(s.t[k]))
+        return key
+
+    def state_keys(self, robot: str, ks) -> list[int]:
+        """state_key for many states at once: the keys of the robot's states ks (in that order)."""
+        s = self.states[robot]
+        keys = s.family.keys(ks)
+        for key, k in zip(keys, np.asarray(ks).tolist()):
+            if key not in self.key_time:
+                self._declare(key, s.family.vartype.zero(), float(s.t[k]))
+        return keys
 
     def pose_key(self, robot: str, k: int) -> int:
-        """The pose of robot `robot` at state k (declared with identity until initialized)."""
-        s = self.states[robot]
-        return self._declare(s.key(k), s.family.vartype.zero(), float(s.t[k]))
+        """The pose of robot `robot` at state k: its state variable, for robots with pose states."""
+        return self.state_key(robot, k)
 
     def parameter(self, robot: str, name: str, index: int | None = None, k: int | None = None) -> int:
         """Key of a calibration parameter from the robot description (element `index`).
@@ -146,14 +196,14 @@ class BuildContext:
             fam = self.keys.family(robot, name if not param.indexed else f"{name}[{i}]",
                                    param.vartype, TIME_VARYING)
             key = fam.key(k)
-            new = not self.initial.exists(key)
+            new = key not in self.key_time
             self._declare(key, param.values[i], self.state_time(robot, k))
             if new and k == 0:
                 self._prior(param, i, key, f"prior:{robot}/{name}", self.state_time(robot, 0))
             return key
         fam = self.keys.family(robot, name, param.vartype, STATIC, indexed=param.indexed)
         key = fam.key(i)
-        if not self.initial.exists(key):
+        if key not in self.key_time:
             self._declare(key, param.values[i], STATIC_TIME)
             self._prior(param, i, key, f"prior:{robot}/{name}", STATIC_TIME)
         return key
@@ -162,7 +212,7 @@ class BuildContext:
                         prior_sigma: Any = None) -> int:
         """A static unknown that no description names (e.g. a base-to-base transform)."""
         key = self.keys.family(robot, name, vartype, STATIC, indexed=False).key(0)
-        if not self.initial.exists(key):
+        if key not in self.key_time:
             self._declare(key, initial, STATIC_TIME)
             if prior_sigma is not None:
                 self.add_record(vartype.prior(key, initial, gaussian(prior_sigma)),
@@ -185,12 +235,16 @@ class BuildContext:
         """Initial value of a variable (an initializer's estimate); a fixed parameter keeps its value."""
         if key in self.fixed_keys:
             return
-        if self.initial.exists(key):
-            self.initial.update(key, value)
-            if self.awaiting_value.pop(key, None) is not None:
-                self.value_source[self.keys.name_of(key)] = self.current_initializer
-        else:
+        if key not in self.key_time:
             raise KeyError(f"{self.keys.name_of(key)} is not a variable of the graph")
+        if key in self._pending and type(self._pending[key]) is type(value):  # not inserted yet: replace it
+            self._pending[key] = value.copy() if isinstance(value, np.ndarray) else value
+        else:  # in the Values (or another Python type): gtsam converts and checks the type
+            if key in self._pending:
+                self._values.insert(key, self._pending.pop(key))
+            self._values.update(key, value)
+        if self.awaiting_value.pop(key, None) is not None:
+            self.value_source[self.keys.name_of(key)] = self.current_initializer
 
     # --- factors -----------------------------------------------------------------------------
     def noise(self, sigmas, spec: Spec | None = None) -> gtsam.noiseModel.Base:
@@ -201,11 +255,11 @@ class BuildContext:
         """Add a factor made by entry `spec`; `time` is when an incremental solver may add it
         (the latest state it touches; static-only factors go first). An entry with `robust:` must
         have built the factor's noise with `noise(sigmas, spec)`: a kernel silently dropped is refused."""
-        if spec.get("robust") and not isinstance(getattr(factor, "noiseModel", lambda: None)(),
+        if spec.data.get("robust") and not isinstance(getattr(factor, "noiseModel", lambda: None)(),
                                                  gtsam.noiseModel.Robust):
             raise PluginError(f"{spec.label}: factor type {spec.type} was given `robust:` but built a factor "
                               "without the kernel (plugin bug: build its noise with ctx.noise(sigmas, spec))")
-        self.add_record(factor, spec.label, time)
+        self.records.append(FactorRecord(factor, spec.label, time))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))
@@ -234,7 +288,7 @@ class BuildContext:
         """What the config declares but no factor uses: a robot's states, a description parameter."""
         notes = []
         for robot, states in self.states.items():
-            if not any(self.initial.exists(states.key(k)) for k in range(len(states))):
+            if not any(states.key(k) in self.key_time for k in range(len(states))):
                 notes.append(f"robot {robot!r} has {len(states)} states but no factor uses them: they are not "
                              "estimated (add a factor for the robot, or remove its `states:`)")
         declared = {(f.robot, f.name.split("[")[0]) for f in self.keys.families()}

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from .variables import VarType
 
 INDEX_BITS = 40
@@ -23,6 +25,10 @@ class Family:
 
     def key(self, index: int = 0) -> int:
         return (self.id << INDEX_BITS) | int(index)
+
+    def keys(self, indices) -> list[int]:
+        """key(i) for every i of `indices` (a sequence or array of ints)."""
+        return ((self.id << INDEX_BITS) | np.asarray(indices, dtype=np.int64)).tolist()
 
     def label(self, index: int | None = None) -> str:
         base = f"{self.robot}/{self.name}"

@@ -150,3 +150,25 @@ def vartype_named(name: str) -> VarType:
 
 
 VARTYPE_NAMES = sorted(_NAMED) + ["vectorN"]
+
+
+# names of the components of a value as listed (to_list) and of its tangent axes (sigmas), per type
+COMPONENTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "pose3": (("x", "y", "z", "qx", "qy", "qz", "qw"), ("rx", "ry", "rz", "tx", "ty", "tz")),
+    "pose2": (("x", "y", "theta"), ("tx", "ty", "rz")),
+    "rot3": (("roll", "pitch", "yaw"), ("rx", "ry", "rz")),
+    "point3": (("x", "y", "z"), ("x", "y", "z")),
+    "point2": (("x", "y"), ("x", "y")),
+    "velocity3": (("vx", "vy", "vz"), ("vx", "vy", "vz")),
+    "imu_bias": (("ax", "ay", "az", "gx", "gy", "gz"), ("ax", "ay", "az", "gx", "gy", "gz")),
+}
+
+
+def component_names(vartype: VarType) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(value components, tangent axes) of a type: COMPONENTS, `value` for a scalar, c0..c{n-1} for a vector."""
+    if vartype.name in COMPONENTS:
+        return COMPONENTS[vartype.name]
+    if vartype.dim == 1:
+        return ("value",), ("value",)
+    names = tuple(f"c{i}" for i in range(vartype.dim))
+    return names, names

@@ -1,1 +1,2 @@
-"""Models any plugin can build on: rate integration, planar kinematics (see fusionkit.api)."""
+"""Models any plugin can build on: rate integration, planar kinematics, simulator building blocks
+(see fusionkit.api)."""

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..pipeline import RunResult
-from ..robots.calibration_file import COMPONENTS
+from ..graph.variables import COMPONENTS
 
 
 def covariance_table(result: RunResult, robot: str) -> tuple[list[str], np.ndarray] | None:

@@ -12,6 +12,8 @@ import yaml
 
 from .. import __version__
 from ..data.files import write_tum
+from ..eval.states import StateSeries
+from ..graph.variables import component_names
 from ..pipeline import ParameterEstimate, RunResult
 from ..robots.calibration_file import calibration_entry
 from ..robots.description import Parameter
@@ -84,6 +86,7 @@ def report_document(result: RunResult) -> dict:
         "config": str(result.config.doc.file),
         "problem": {"factors": len(problem.records), "variables": int(problem.initial.size()),
                     "states": {r: len(s) for r, s in problem.states.items()}, "factors_by_entry": counts},
+        "states": states_entry(result),
         "status": solver["status"],  # "rejected": the chi-square gate refused the solution (solver.rejection)
         "solver": solver,
         "final_cost": solver["final_cost"],
@@ -108,6 +111,24 @@ def calibration_text(doc: dict) -> str:
     return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, width=4096)
 
 
+def series_files(result: RunResult) -> dict[str, StateSeries]:
+    """states/<robot>.<family>.csv for every per-state family that is not a robot's trajectory (those
+    are trajectories/<robot>.tum): velocities, biases, joint vectors, non-pose states."""
+    return {f"states/{robot}.{family}.csv": series for (robot, family), series in result.states.items()
+            if not (robot in result.trajectories and series.vartype.name in ("pose3", "pose2"))}
+
+
+def states_entry(result: RunResult) -> dict:
+    """report.json `states`: robot -> family -> type, number of states, components, file."""
+    files = {id(series): file for file, series in series_files(result).items()}
+    out: dict[str, dict] = {}
+    for (robot, family), series in result.states.items():
+        out.setdefault(robot, {})[family] = {
+            "type": series.vartype.name, "count": len(series.t), "components": list(component_names(series.vartype)[0]),
+            "file": files.get(id(series), f"trajectories/{robot}.tum")}
+    return out
+
+
 def _json_default(o: Any):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -118,11 +139,16 @@ def _json_default(o: Any):
 
 def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
     """Write every output file into `out` (a fresh folder)."""
-    (out / "trajectories").mkdir()
     (out / "report.json").write_text(json.dumps(report_document(result), indent=2, default=_json_default))
     (out / "calibration.yaml").write_text(calibration_text(calibration_document(result)))
     for robot, traj in result.trajectories.items():
+        (out / "trajectories").mkdir(exist_ok=True)
         write_tum(out / "trajectories" / f"{robot}.tum", traj)
+    for file, series in series_files(result).items():
+        (out / "states").mkdir(exist_ok=True)
+        columns, rows = series.table()
+        np.savetxt(out / file, rows, delimiter=",", header=",".join(columns), comments="",
+                   fmt=["%.9f"] + ["%.12g"] * (rows.shape[1] - 1))
     if result.config.output.get("state_covariances"):
         from .covariances import write_state_covariances
         write_state_covariances(result, out / "covariances")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..pipeline import RunResult
-from ..robots.calibration_file import COMPONENTS, SIGMA_AXES
+from ..graph.variables import COMPONENTS
+from ..robots.calibration_file import SIGMA_AXES
 
 
 def _fmt(values, sigma, kind: str = "") -> str:

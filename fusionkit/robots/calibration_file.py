@@ -20,19 +20,11 @@ from typing import Any
 import numpy as np
 
 from ..config.yamlio import Document
+from ..graph.variables import COMPONENTS
 from .description import Parameter, RobotDescription, _sigma_array
 
 # type -> (names of a value's list entries, names of a sigma's entries); other types (scalar, vectorN)
 # have no named components
-COMPONENTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "pose3": (("x", "y", "z", "qx", "qy", "qz", "qw"), ("rx", "ry", "rz", "tx", "ty", "tz")),
-    "pose2": (("x", "y", "theta"), ("tx", "ty", "rz")),
-    "rot3": (("roll", "pitch", "yaw"), ("rx", "ry", "rz")),
-    "point3": (("x", "y", "z"), ("x", "y", "z")),
-    "point2": (("x", "y"), ("x", "y")),
-    "velocity3": (("vx", "vy", "vz"), ("vx", "vy", "vz")),
-    "imu_bias": (("ax", "ay", "az", "gx", "gy", "gz"), ("ax", "ay", "az", "gx", "gy", "gz")),
-}
 # what the sigma names of a type with rotation mean (printed beside them in the summary)
 SIGMA_AXES = {"pose3": "rad about, m along the body axes", "pose2": "m along, rad about the body axes",
               "rot3": "rad about the body axes"}

@@ -16,6 +16,7 @@ import numpy as np
 from ..config.schema import validate_against
 from ..config.yamlio import Document, load_yaml, parse_yaml
 from ..graph.variables import POSE3, VARTYPE_NAMES, VarType, vartype_named
+from .registered import is_description_name, registered_document
 
 POSE_SCHEMA = {
     "type": "object",
@@ -191,12 +192,16 @@ def description_from_document(doc: Document) -> RobotDescription:
                             sensors, parameters, extra, doc)
 
 
-def load_description(source: str | Path | dict, base: Path, where: Document, path: tuple) -> RobotDescription:
-    """Load a description from a file (relative to `base`) or an inline mapping in the config."""
+def load_description(source: str | Path | dict, base: Path, where: Document, path: tuple, reg) -> RobotDescription:
+    """Load a description from a file (relative to `base`), an inline mapping in the config, or by
+    the name a plugin registered it under (a string without path separator or .yaml/.yml suffix,
+    looked up in the registry `reg`)."""
     if isinstance(source, dict):
         sub = Document(source, where.file, {k[len(path):]: v for k, v in where.lines.items()
                                             if k[:len(path)] == path})
         return description_from_document(sub)
+    if is_description_name(str(source)):
+        return description_from_document(registered_document(str(source), reg, where, path))
     file = (base / source) if not Path(source).is_absolute() else Path(source)
     if not file.exists():
         raise where.error(path, f"robot description file not found: {file}")

@@ -1,7 +1,7 @@
 """Built-in `cable_rigid` plugin: the cdpr robot model, rigid/elastic cable factors, pulley
 pseudo-measurements (models: docs/models/cable_rigid.md)."""
 
-from fusionkit.api import hookimpl
+from fusionkit.api import hookimpl, robot_description_files
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
@@ -27,3 +27,8 @@ def register_simulators():
 @hookimpl
 def register_initializers():
     return INITIALIZERS
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

@@ -1,7 +1,7 @@
 """`cable.cdpr`: synthetic datasets of a suspended cable-driven parallel robot (docs/models/cable_rigid.md,
 ARAS-CAM: 4 cables, monocular camera on the end-effector, 750 poses at 30 Hz).
 
-The geometry comes from a shipped description (robots/<robot>.yaml). The TRUE pulleys are the
+The geometry comes from a shipped description (`robot`: a registered description's name). The TRUE pulleys are the
 nominal ones perturbed by `pulley_error` per axis, then (`coplanar_pulleys`, default) projected
 onto their best-fit plane: pulleys on one frame or ceiling, whose tilt is unknown; the encoders are relative and zeroed at the
 home pose, so the true offsets make the noiseless readings 0 there (l0_i = -(1 - T_i/EA) l*_i at
@@ -25,20 +25,15 @@ Everything but the per-pose gtsam conversions and the tiny per-pose NNLS is vect
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
-from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.optimize import brentq, nnls
 from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, odometry, pose_stream, poses_from_array,
-                           sample_times, Simulator, SourceOutput, Stream)
+                           robot_description_data, sample_times, Simulator, SourceOutput, Stream)
 from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
-from fusionkit.config.yamlio import SafeLoader
 
-ROBOTS_DIR = Path(__file__).resolve().parents[2] / "robots"
 GRAVITY = 9.81
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
 
@@ -70,16 +65,6 @@ class Geometry:
     @property
     def n(self) -> int:
         return len(self.attachments)
-
-
-@cache
-def _shipped(robot: str) -> str:
-    return (ROBOTS_DIR / f"{robot}.yaml").read_text()
-
-
-def shipped_description(robot: str) -> dict:
-    """The description dict of robots/<robot>.yaml (a fresh copy)."""
-    return yaml.load(_shipped(robot), Loader=SafeLoader)
 
 
 def nominal_geometry(desc: dict) -> Geometry:
@@ -317,7 +302,7 @@ class CdprSimulator(Simulator):
         return _merged(self.defaults, params)
 
     def stream_columns(self, params: dict):
-        n = len(shipped_description(self._params(params)["robot"])["cables"]["attachments"])
+        n = len(robot_description_data(self._params(params)["robot"])["cables"]["attachments"])
         return {"vo": POSE_COLUMNS, "mocap": POSE_COLUMNS,
                 "lengths": tuple(f"l{i}" for i in range(n)), "tensions": tuple(f"T{i}" for i in range(n))}
 
@@ -329,7 +314,7 @@ class CdprSimulator(Simulator):
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
         p = self._params(params)
-        desc = shipped_description(p["robot"])
+        desc = robot_description_data(p["robot"])
         nominal = nominal_geometry(desc)
         t = sample_times(p["duration"], p["rate"])
         if len(t) < 10:
@@ -383,7 +368,7 @@ class CdprSimulator(Simulator):
         file's -2.9; cdpr_small's file has 0, absolute encoders, which this replaces). A camera and
         a `vo_scale` (1.0 +- 10, as in arascam) are added where the description has none."""
         p = self._params(params)
-        desc = shipped_description(p["robot"])
+        desc = robot_description_data(p["robot"])
         geo = nominal_geometry(desc)
         home = home_position(desc)
         length, _ = cable_vectors(home[None], np.eye(3)[None], geo)
@@ -395,13 +380,13 @@ class CdprSimulator(Simulator):
 
     def home_pose(self, params: dict) -> list[float]:
         """The true home pose [x, y, z, qx, qy, qz, qw]: the zero pose the user picks."""
-        home = home_position(shipped_description(self._params(params)["robot"]))
+        home = home_position(robot_description_data(self._params(params)["robot"]))
         return [float(x) for x in home] + [0.0, 0.0, 0.0, 1.0]
 
     def search_region(self, params: dict) -> dict:
         """Where the Monte-Carlo initializer looks for the pulleys: the nominal pulleys' bounding box
         grown by REGION_MARGIN on every side (a user knows the room, not the pulleys)."""
-        pulleys = nominal_geometry(shipped_description(self._params(params)["robot"])).pulleys
+        pulleys = nominal_geometry(robot_description_data(self._params(params)["robot"])).pulleys
         return {"min": [round(float(x), 3) for x in pulleys.min(axis=0) - REGION_MARGIN],
                 "max": [round(float(x), 3) for x in pulleys.max(axis=0) + REGION_MARGIN]}
 

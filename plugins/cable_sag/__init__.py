@@ -1,9 +1,10 @@
 """`cable_sag` plugin: suspended cable robots with heavy, sagging cables (docs/models/cable_sag.md) --
 the catenary statics through one reference cable, the kinematic-static calibration factors, the
 fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
-plugin; it adds to the rigid-cable plugin (its `cdpr` model, helpers) without changing it."""
+plugin; it builds on the rigid-cable plugin's `cdpr` robot model and `cdpr_small` description by name
+(through the registry), without importing or changing it."""
 
-from fusionkit.api import hookimpl
+from fusionkit.api import hookimpl, robot_description_files
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
@@ -23,3 +24,8 @@ def register_initializers():
 @hookimpl
 def register_simulators():
     return SIMULATORS
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

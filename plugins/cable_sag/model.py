@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import RobotDescription, Spec
-from fusionkit_plugins.cable_rigid.simulator import shipped_description
+from fusionkit.api import RobotDescription, Spec, robot_description_data
 
 from .statics import N_CABLES, SagRobot
 
+ROBOT_NAME = "cdpr"  # the robot's key in the configs, truth and robots/cdpr.yaml the simulator writes
 GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N)
 CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
 FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
@@ -50,6 +50,6 @@ def check_sag_robot(spec: Spec, scope, n: int) -> None:
 
 
 def shipped_robot(name: str, reference: int = 0) -> tuple[SagRobot, np.ndarray]:
-    """(statics parameters, nominal pulleys (n, 3)) of robots/<name>.yaml."""
-    desc = shipped_description(name)
+    """(statics parameters, nominal pulleys (n, 3)) of the registered description `name`."""
+    desc = robot_description_data(name)
     return sag_robot_from(desc, reference), np.asarray(desc["parameters"]["pulley"]["values"], float)

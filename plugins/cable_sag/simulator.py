@@ -20,12 +20,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, pose_stream, poses_from_array, Simulator,
-                           SourceOutput, Stream)
+from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, pose_stream, poses_from_array, robot_description_data,
+                           Simulator, SourceOutput, Stream)
 from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
-from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_description
 
-from .model import shipped_robot
+from .model import ROBOT_NAME, shipped_robot
 from .static_solver import StaticsError, inverse_pose
 
 NONNEG = {"type": "number", "minimum": 0}
@@ -36,7 +35,7 @@ BOX = {"type": "object", "properties": {"min": {"type": "array", "items": {"type
        "required": ["min", "max"], "additionalProperties": False}
 # the vision system's pose noise, the same for both robots: the thesis states only "centimetre-level
 # translation, small rotation" (the source's public simulation code uses 0.19 mm / 0.019 deg per
-# axis: experiments.SOURCE_CODE_POSE_SIGMA, set it with pose_sigma)
+# axis: benchmarks/research/cable_sag_experiments.py SOURCE_CODE_POSE_SIGMA, set it with pose_sigma)
 POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}
 # per robot: where the end-effector goes (the external finite-element poses span about this), the
 # initial error of the source's protocol, the force sensor's noise (about 1 % of the tension)
@@ -121,7 +120,7 @@ class SagStaticSimulator(Simulator):
     def robots(self, params: dict) -> dict[str, dict]:
         """The shipped description, without priors on pulleys and offsets: its values are only the
         starting guess (off by up to initial_error)."""
-        desc = shipped_description(self._params(params)["robot"])
+        desc = robot_description_data(self._params(params)["robot"])
         for name in ("pulley", "offset"):
             desc["parameters"][name].pop("sigma", None)
         return {ROBOT_NAME: desc}

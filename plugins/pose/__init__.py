@@ -1,6 +1,6 @@
 """Built-in `pose` plugin: generic pose, IMU and motion-model factors, initializers and simulators."""
 
-from fusionkit.api import hookimpl
+from fusionkit.api import hookimpl, robot_description_files
 
 from . import imu, motion
 from .factors import FACTOR_TYPES
@@ -21,3 +21,8 @@ def register_initializers():
 @hookimpl
 def register_simulators():
     return SIMULATORS
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

@@ -45,6 +45,15 @@ def check_sensor(spec: Spec, scope) -> None:
                              f"{', '.join(sorted(sensors)) or '(none)'}")
 
 
+def poses_at(stream, t: np.ndarray, max_gap: float | None = None) -> tuple[np.ndarray, list[gtsam.Pose3]]:
+    """(mask of the times inside the stream's span and not across a gap > max_gap, the stream's poses
+    at those times): its own poses when `t` are its stamps (states clocked by it), else interpolated."""
+    if np.array_equal(t, stream.t):
+        return np.ones(len(t), dtype=bool), stream.poses()
+    inside, arr = interpolate_poses(stream.t, stream.pose_array(), t, max_gap)
+    return inside, poses_from_array(arr)
+
+
 def odometry_pairs(ctx, spec: Spec, robot: str) -> list[tuple[int, int, gtsam.Pose3, gtsam.Pose3]]:
     """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times.
 
@@ -52,16 +61,17 @@ def odometry_pairs(ctx, spec: Spec, robot: str) -> list[tuple[int, int, gtsam.Po
     no pair spans a gap (the count is reported, not silently dropped)."""
     stream = ctx.stream(spec["stream"])
     states = ctx.state_set(robot, spec)
-    inside, arr = interpolate_poses(stream.t, stream.pose_array(), states.t, spec.get("max_gap"))
+    inside, poses = poses_at(stream, states.t, spec.get("max_gap"))
     idx = np.flatnonzero(inside)
     if len(idx) < len(states):
         ctx.notes.append(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
                          f"outside stream {stream.name!r} (or across a gap) and get no factor from it")
     segment = segment_ids(stream.t, states.t[idx], spec.get("max_gap"))
-    mount_inv = mount_of(ctx, spec).inverse()
-    poses = [p.compose(mount_inv) for p in poses_from_array(arr)]
-    return [(int(idx[j]), int(idx[j + 1]), poses[j], poses[j + 1]) for j in range(len(idx) - 1)
-            if idx[j + 1] == idx[j] + 1 and segment[j] == segment[j + 1]]
+    if "sensor" in spec.data:  # sensor poses -> body poses
+        mount_inv = mount_of(ctx, spec).inverse()
+        poses = [p.compose(mount_inv) for p in poses]
+    js = np.flatnonzero((np.diff(idx) == 1) & (segment[1:] == segment[:-1]))  # consecutive, same stretch
+    return [(ka, ka + 1, poses[j], poses[j + 1]) for j, ka in zip(js.tolist(), idx[js].tolist())]
 
 
 class AbsolutePose(FactorType):
@@ -146,14 +156,17 @@ class RelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        planar = ctx.state_set(robot).family.vartype is POSE2
+        states = ctx.state_set(robot)
+        planar = states.family.vartype is POSE2
         noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
-        for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
+        t = states.t.tolist()
+        pairs = odometry_pairs(ctx, spec, robot)
+        keys = ctx.state_keys(robot, [k for ka, kb, _, _ in pairs for k in (ka, kb)])
+        for (ka, kb, pa, pb), a, b in zip(pairs, keys[::2], keys[1::2]):
             delta = pa.between(pb)
-            a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
             factor = gtsam.BetweenFactorPose2(a, b, to_pose2(delta), noise) if planar else \
                 gtsam.BetweenFactorPose3(a, b, delta, noise)
-            ctx.add(factor, spec, ctx.state_time(robot, kb))
+            ctx.add(factor, spec, t[kb])
 
     @classmethod
     def example(cls, rng):
@@ -202,8 +215,9 @@ class ScaledRelativePose(FactorType):
         robot = spec["robot"]
         noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
         scale = ctx.parameter(robot, spec["scale"])
-        for ka, kb, pa, pb in odometry_pairs(ctx, spec, robot):
-            a, b = ctx.pose_key(robot, ka), ctx.pose_key(robot, kb)
+        pairs = odometry_pairs(ctx, spec, robot)
+        keys = ctx.state_keys(robot, [k for ka, kb, _, _ in pairs for k in (ka, kb)])
+        for (ka, kb, pa, pb), a, b in zip(pairs, keys[::2], keys[1::2]):
             ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, ctx.state_time(robot, kb))
 
     @classmethod

@@ -5,26 +5,26 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_COLUMNS, Initializer, interpolate_poses, nearest, poses_from_array, Spec
+from fusionkit.api import POSE_COLUMNS, Initializer, nearest, poses_from_array, Spec
 
-from .factors import BASE_TRANSFORM, to_pose2
+from .factors import BASE_TRANSFORM, poses_at, to_pose2
 
 
 def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
+    """Initial values of the robot's declared states (those some factor uses)."""
     states = ctx.state_set(robot)
     planar = states.family.vartype.name == "pose2"
-    for k, p in enumerate(poses):
-        key = states.key(k)
-        if ctx.initial.exists(key):
+    for key, p in zip(states.family.keys(range(len(poses))), poses):
+        if ctx.has_variable(key):
             ctx.set_initial(key, to_pose2(p) if planar else p)
 
 
 def _first_state_pose(ctx, robot: str) -> gtsam.Pose3:
     """The first state's current initial value as a Pose3 (a Pose2 lifted to the plane z = 0)."""
     states = ctx.state_set(robot)
-    if not ctx.initial.exists(states.key(0)):
+    if not ctx.has_variable(states.key(0)):
         return gtsam.Pose3()
-    p = states.family.vartype.read(ctx.initial, states.key(0))
+    p = ctx.initial_value(states.key(0))
     if isinstance(p, gtsam.Pose2):
         return gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0]))
     return p
@@ -32,9 +32,7 @@ def _first_state_pose(ctx, robot: str) -> gtsam.Pose3:
 
 def _at_states(stream, t: np.ndarray) -> list[gtsam.Pose3]:
     """Stream poses at times t; times outside the stream's span take the nearest end pose."""
-    clipped = np.clip(t, stream.t[0], stream.t[-1])
-    _, arr = interpolate_poses(stream.t, stream.pose_array(), clipped)
-    return poses_from_array(arr)
+    return poses_at(stream, np.clip(t, stream.t[0], stream.t[-1]))[1]
 
 
 class DeadReckoning(Initializer):
@@ -57,18 +55,21 @@ class DeadReckoning(Initializer):
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         odo = _at_states(ctx.stream(spec["stream"]), states.t)
-        scale = 1.0
-        if "scale" in spec.data:
-            scale = float(ctx.initial.atDouble(ctx.parameter(robot, spec["scale"])))
-        start = _first_state_pose(ctx, robot)
         if "anchor" in spec.data:
             anchor = ctx.stream(spec["anchor"])
             first = nearest(anchor.t, states.t[:1], np.inf)
             start = poses_from_array(anchor.pose_array()[first.state])[0]
+        else:
+            start = _first_state_pose(ctx, robot)
         poses = [start]
-        for a, b in zip(odo[:-1], odo[1:]):
-            d = a.between(b)
-            poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
+        if "scale" in spec.data:
+            scale = float(ctx.initial_value(ctx.parameter(robot, spec["scale"])))
+            for a, b in zip(odo[:-1], odo[1:]):
+                d = a.between(b)
+                poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
+        else:
+            for a, b in zip(odo[:-1], odo[1:]):
+                poses.append(poses[-1].compose(a.between(b)))
         _set_poses(ctx, robot, poses)
 
 

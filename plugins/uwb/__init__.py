@@ -4,7 +4,7 @@ odometry and a constant-velocity prior between ranging epochs, multilateration i
 poses and unknown anchors, and a simulator. The range math is the rigid-cable model's
 (fusionkit.geometry): the anchor plays the pulley, the bias the encoder offset."""
 
-from fusionkit.api import hookimpl
+from fusionkit.api import hookimpl, robot_description_files
 
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
@@ -31,3 +31,8 @@ def register_simulators():
 @hookimpl
 def register_sources():
     return SOURCES
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

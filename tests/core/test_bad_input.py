@@ -20,7 +20,7 @@ from fusionkit.solve.checks import check_solution
 
 REPO = Path(__file__).resolve().parents[2]
 SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
-ROBOT = REPO / "robots" / "handheld_camera.yaml"
+ROBOT = REPO / "plugins" / "pose" / "robots" / "handheld_camera.yaml"
 FAST = ["--set", "sources.0.params.duration=5"]
 PREFIX = "fusionkit: error: "
 
@@ -72,11 +72,13 @@ def run(config: Path, out: Path, *extra: str) -> list[str]:
 
 
 def scaled_vo_copy(tmp_path: Path) -> Path:
-    """configs/scaled_vo_mocap.yaml and robots/handheld_camera.yaml copied side by side as in the repository."""
+    """configs/scaled_vo_mocap.yaml with a copy of the shipped handheld_camera description beside it,
+    named by its path (../robots/handheld_camera.yaml): a user's own description file."""
     (tmp_path / "configs").mkdir(parents=True)
     (tmp_path / "robots").mkdir()
     shutil.copy(ROBOT, tmp_path / "robots")
-    return Path(shutil.copy(SCALED_VO, tmp_path / "configs" / "scaled_vo_mocap.yaml"))
+    config = Path(shutil.copy(SCALED_VO, tmp_path / "configs" / "scaled_vo_mocap.yaml"))
+    return rewrite(config, "description: handheld_camera", "description: ../robots/handheld_camera.yaml")
 
 
 def csv_dataset(ds: Path, text: str | None = None, columns: list[str] | None = None) -> Path:

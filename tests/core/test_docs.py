@@ -20,7 +20,7 @@ def user_docs() -> list[Path]:
 
 
 def user_text_files() -> list[Path]:
-    return user_docs() + sorted((ROOT / "configs").glob("*.yaml")) + sorted((ROOT / "robots").glob("*.yaml"))
+    return user_docs() + sorted((ROOT / "configs").glob("*.yaml")) + sorted((ROOT / "plugins").glob("*/robots/*.yaml"))
 
 
 def slug(heading: str) -> str:

@@ -13,7 +13,7 @@ from fusionkit.config.overrides import new_key_note
 REPO = Path(__file__).resolve().parents[2]
 SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
 FAST = ["--set", "sources.0.params.duration=4"]
-IDLE_ROBOT = ["--set", "robots.idle={description: ../robots/handheld_camera.yaml, states: {stream: mocap}}"]
+IDLE_ROBOT = ["--set", "robots.idle={description: handheld_camera, states: {stream: mocap}}"]
 
 
 def test_robot_with_states_but_no_factor_is_noted_in_validate(capsys):

@@ -26,7 +26,6 @@ def _rigid_copy(tmp_path: Path) -> Path:
     config = yaml.safe_load((CONFIGS / "cable_mocap_lengths.yaml").read_text())
     config["factors"][1] = {"type": "cable.length", "robot": "cdpr", "stream": "lengths", "sigma": 0.001}
     (tmp_path / "configs").mkdir()
-    (tmp_path / "robots").symlink_to(CONFIGS.parent / "robots")
     path = tmp_path / "configs" / "rigid.yaml"
     path.write_text(yaml.safe_dump(config))
     return path

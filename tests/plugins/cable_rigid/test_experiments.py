@@ -8,9 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusionkit_plugins.cable_rigid.experiments import (SEQUENCES, pseudo_measurement_gain, run_sequence,
-                                                       shape_error, table_4_1)
 from fusionkit_plugins.cable_rigid.kinematics import forward_kinematics
+from research.cable_rigid_experiments import SEQUENCES, pseudo_measurement_gain, run_sequence, shape_error, table_4_1
 
 SEEDS = range(3)
 

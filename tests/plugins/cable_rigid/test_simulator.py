@@ -13,10 +13,11 @@ import yaml
 
 import fusionkit
 from fusionkit.cli.main import main
+from fusionkit.api import robot_description_data
 from fusionkit.data.stream import poses_from_array
 from fusionkit_plugins.cable_rigid.simulator import (CdprSimulator, Geometry, commanded_trajectory,
                                                      encoder_readings, gravity_wrench, nominal_geometry,
-                                                     shipped_description, wrench_matrix)
+                                                     wrench_matrix)
 from fusionkit_plugins.cable_rigid.kinematics import forward_kinematics
 
 SIM = CdprSimulator()
@@ -39,7 +40,7 @@ def dynamic():
 
 
 def true_geometry(params: dict, out) -> Geometry:
-    nominal = nominal_geometry(shipped_description(params["robot"]))
+    nominal = nominal_geometry(robot_description_data(params["robot"]))
     pulleys = np.array(out.truth_calibration["cdpr"]["pulley"]["values"])
     return Geometry(pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
 
@@ -64,7 +65,7 @@ def test_streams_have_750_samples_their_columns_and_truth_pulleys_5_cm_off_nomin
     assert out.streams["tensions"].columns == ("T0", "T1", "T2", "T3")
     cal = out.truth_calibration["cdpr"]
     assert cal["vo_scale"]["value"] == 2.0
-    nominal = np.array(shipped_description("arascam")["parameters"]["pulley"]["values"])
+    nominal = np.array(robot_description_data("arascam")["parameters"]["pulley"]["values"])
     error = np.array(cal["pulley"]["values"]) - nominal
     assert 0.02 < error.std() < 0.08 and np.abs(error).max() < 0.2  # pulley_error 0.05 m per axis
     assert out.truth_trajectories["cdpr"].pose_array()[0] == pytest.approx(SIM.home_pose(params))
@@ -152,7 +153,7 @@ def test_mocap_is_the_true_pose_with_its_sigmas_within_10_percent(smooth):
 # ---------------------------------------------------------------------------------- the trajectory
 def test_trajectory_moves_along_x_then_y_then_z_inside_the_workspace(smooth):
     params, out = smooth
-    desc = shipped_description("arascam")
+    desc = robot_description_data("arascam")
     geo = nominal_geometry(desc)
     truth = out.truth_trajectories["cdpr"]
     t, arr = truth.t, truth.pose_array()
@@ -236,9 +237,9 @@ def test_nested_parameters_keep_their_other_defaults():
 
 def test_descriptions_keep_the_nominal_values():
     arascam = SIM.robots({})["cdpr"]
-    assert arascam == shipped_description("arascam")  # nominal pulleys, offsets -2.9, vo_scale 1.0
+    assert arascam == robot_description_data("arascam")  # nominal pulleys, offsets -2.9, vo_scale 1.0
     small = SIM.robots({"robot": "cdpr_small"})["cdpr"]
-    shipped = shipped_description("cdpr_small")
+    shipped = robot_description_data("cdpr_small")
     assert small["parameters"]["pulley"] == shipped["parameters"]["pulley"]
     # encoders zeroed at home: nominal offsets are minus the nominal lengths there (10-11 m)
     assert all(-12 < v < -6 for v in small["parameters"]["offset"]["values"])

@@ -11,10 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fusionkit.testing.external_data import external_data, missing_reason
-from fusionkit_plugins.cable_sag.experiments import (SOURCE_CODE_POSE_SIGMA, calibrate, errors, force_cross_validation,
-                                                     recurdyn_calibration, recurdyn_model_errors, recurdyn_poses,
-                                                     table_5_2)
+from research.external_data import external_data, missing_reason
+from research.cable_sag_experiments import (SOURCE_CODE_POSE_SIGMA, calibrate, errors, force_cross_validation,
+                                            recurdyn_calibration, recurdyn_model_errors, recurdyn_poses, table_5_2)
 
 FE_DATA = external_data("cdpr_recurdyn")
 needs_fe_data = pytest.mark.skipif(not FE_DATA.is_dir(),

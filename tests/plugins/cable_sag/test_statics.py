@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from fusionkit_plugins.cable_sag.lumped_mass import chain_end, lumped_forward_pose
 from fusionkit_plugins.cable_sag.model import shipped_robot
 from fusionkit_plugins.cable_sag.static_solver import StaticsError, forward_pose, inverse_pose
 from fusionkit_plugins.cable_sag.statics import equilibrium
+from research.lumped_mass import chain_end, lumped_forward_pose
 
 LARGE = shipped_robot("cdpr_large")
 SMALL = shipped_robot("cdpr_small")

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fusionkit_plugins.uwb.experiments import aligned_anchor_errors, run
 from fusionkit_plugins.uwb.survey import anchor_frame, line_of_sight, place_anchors
+from research.uwb_experiments import aligned_anchor_errors, run
 
 ROOM = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]])  # uwb.sim's anchors: drawn in the anchor frame
 EVERY = [0, 1, 2, 3]

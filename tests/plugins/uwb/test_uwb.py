@@ -12,9 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fusionkit.testing.external_data import external_data, missing_reason
-from fusionkit_plugins.uwb.experiments import (bias_models, labyrinth, per_epoch_multilateration, position_rmse,
-                                               run)
+from research.external_data import external_data, missing_reason
+from research.uwb_experiments import bias_models, labyrinth, per_epoch_multilateration, position_rmse, run
 
 LABYRINTH = external_data("uwb_labyrinth")
 needs_labyrinth = pytest.mark.skipif(not LABYRINTH.is_dir(),

@@ -22,11 +22,12 @@ from typing import Iterator
 import numpy as np
 import yaml
 
-from fusionkit.config.loader import RunConfig, load_config
-from fusionkit.data.association import nearest
+from fusionkit import load_config
+from fusionkit.api import nearest
+from fusionkit.config.loader import RunConfig
+from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, CdprSimulator
 
-from .baselines import localization_errors
-from .simulator import ROBOT_NAME, CdprSimulator
+from .cable_rigid_baselines import localization_errors
 
 SEQUENCES = ("dynamic", "smooth")  # the thesis's sequences 01 and 12
 CABLE_ENTRY = "factors[2]:cable.length"

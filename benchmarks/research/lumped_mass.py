@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import root
 from scipy.spatial.transform import Rotation
 
-from .statics import SagRobot
+from fusionkit_plugins.cable_sag.statics import SagRobot
 
 SEGMENTS = 2000
 

@@ -14,12 +14,10 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.data.association import interpolate_poses, nearest
-from fusionkit.data.stream import poses_from_array
-
-from .factors import length_columns
-from .kinematics import forward_kinematics
-from .model import cable_robot
+from fusionkit.api import interpolate_poses, nearest, poses_from_array
+from fusionkit_plugins.cable_rigid.factors import length_columns
+from fusionkit_plugins.cable_rigid.kinematics import forward_kinematics
+from fusionkit_plugins.cable_rigid.model import cable_robot
 
 
 def _rmse(a: np.ndarray, b: np.ndarray) -> float:

@@ -7,7 +7,7 @@ import gtsam
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .graph.noise import pose_sigma_schema
+from ..graph.noise import pose_sigma_schema
 
 POSE_NOISE_SCHEMA = pose_sigma_schema(allow_zero=True)  # a simulated pose noise level; 0 = noiseless
 

@@ -21,16 +21,15 @@ import yaml
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
-from fusionkit.config.loader import load_config
+from fusionkit import load_config
+from fusionkit.api import robot_description_data
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, shipped_description
-
-from .catenary import catenary
-from .model import shipped_robot
-from .simulator import PER_ROBOT, SagStaticSimulator
-from .static_solver import StaticsError, euler_zyx, inverse_pose
-from .statics import SagRobot
+from fusionkit_plugins.cable_sag.catenary import catenary
+from fusionkit_plugins.cable_sag.model import ROBOT_NAME, shipped_robot
+from fusionkit_plugins.cable_sag.simulator import PER_ROBOT, SagStaticSimulator
+from fusionkit_plugins.cable_sag.static_solver import StaticsError, euler_zyx, inverse_pose
+from fusionkit_plugins.cable_sag.statics import SagRobot
 
 SCENARIO = "cable.sag_static"
 FE_POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}  # vision noise assumed on the finite-element poses
@@ -297,7 +296,7 @@ def recurdyn_calibration(fe: FePoses, seeds, initial_error: float | None = None,
         for seed in seeds:
             rng = np.random.default_rng(seed)
             half = error / np.sqrt(3.0)
-            desc = shipped_description(fe.robot)
+            desc = robot_description_data(fe.robot)
             desc["parameters"]["pulley"] = {"type": "point3",
                                             "values": (pulleys + rng.uniform(-half, half, pulleys.shape)).tolist()}
             desc["parameters"]["offset"] = {"type": "scalar", "values": rng.uniform(-half, half, robot.n).tolist()}

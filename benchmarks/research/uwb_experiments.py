@@ -11,16 +11,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from fusionkit.config.loader import load_config
-
-from fusionkit.data.association import nearest
+from fusionkit import load_config
+from fusionkit.api import nearest
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-
-from .factors import lever_arm
-from .initializers import multilaterate
-from .labyrinth import read_labyrinth
-from .survey import rigid_fit
+from fusionkit_plugins.uwb.factors import lever_arm
+from fusionkit_plugins.uwb.initializers import multilaterate
+from fusionkit_plugins.uwb.labyrinth import read_labyrinth
+from fusionkit_plugins.uwb.survey import rigid_fit
 
 SCENARIO = "uwb.sim"
 MODELS = ("none", "constant", "time_varying")

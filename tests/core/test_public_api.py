@@ -1,0 +1,63 @@
+"""The public plugin API: every plugin in this repository (and the example third-party package)
+imports fusionkit only through `fusionkit.api`, and no plugin family reaches into another's modules
+-- exactly as a third-party package would be written."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import fusionkit.api
+
+REPO = Path(__file__).resolve().parents[2]
+PLUGIN_ROOTS = [REPO / "plugins", REPO / "examples" / "fusionkit-altimeter" / "fusionkit_altimeter"]
+
+
+def plugin_files() -> list[Path]:
+    return sorted(p for root in PLUGIN_ROOTS for p in root.rglob("*.py"))
+
+
+def imported_modules(path: Path) -> list[tuple[int, str]]:
+    """(line, module) of every absolute import in the file, at any depth (functions included)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.append((node.lineno, node.module))
+    return out
+
+
+def family_of(path: Path) -> str:
+    return path.relative_to(REPO).parts[1] if path.is_relative_to(REPO / "plugins") else "altimeter"
+
+
+def test_plugins_import_fusionkit_only_through_the_public_api():
+    offending = [f"{p.relative_to(REPO)}:{line}: {module}" for p in plugin_files()
+                 for line, module in imported_modules(p)
+                 if (module == "fusionkit" or module.startswith("fusionkit.")) and module != "fusionkit.api"]
+    assert not offending, "plugins must import from fusionkit.api only:\n" + "\n".join(offending)
+
+
+def test_no_plugin_family_imports_another_familys_modules():
+    offending = [f"{p.relative_to(REPO)}:{line}: {module}" for p in plugin_files()
+                 for line, module in imported_modules(p)
+                 if module.startswith("fusionkit_plugins.") and module.split(".")[1] != family_of(p)]
+    assert not offending, "a plugin family uses only the public API, not another plugin:\n" + "\n".join(offending)
+
+
+def test_every_public_name_exists_and_is_documented_in_the_plugin_guide():
+    guide = (REPO / "docs" / "plugin_guide.md").read_text()
+    assert fusionkit.api.API_VERSION.count(".") == 1
+    missing = [name for name in fusionkit.api.__all__ if not hasattr(fusionkit.api, name)]
+    assert not missing
+    undocumented = [name for name in fusionkit.api.__all__ if f"`{name}" not in guide]
+    assert not undocumented, f"add to docs/plugin_guide.md: {undocumented}"
+
+
+@pytest.mark.parametrize("path", plugin_files(), ids=lambda p: str(p.relative_to(REPO)))
+def test_plugin_module_imports_cleanly(path):
+    """Each file parses; a syntax error in a rarely imported module would otherwise hide until used."""
+    ast.parse(path.read_text())
