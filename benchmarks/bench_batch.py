@@ -23,7 +23,8 @@ from fusionkit.pipeline import estimate
 import chain
 from _timing import median_of, ms, table
 
-TARGET = 1.2
+TARGET = 1.2        # read and build, fusionkit / hand-written (issue 12)
+TOTAL_TARGET = 1.3  # end to end
 
 
 def run_fusionkit(config_path: Path) -> tuple[dict, object]:
@@ -108,7 +109,7 @@ def run(quick: bool = False) -> dict:
                 raw[n] = {"handwritten": hw, "fusionkit_projected_s": projected}
             continue
         config = chain.write_dataset(folder, n, "batch")
-        repeats = 3 if projected < 2.5 else 1
+        repeats = 3 if projected < 10.0 else 1
         fk_runs, hw_runs = [], []
         for _ in range(repeats):  # interleaved, so load drifts hit both
             fk, result = run_fusionkit(config)
@@ -128,7 +129,7 @@ def run(quick: bool = False) -> dict:
         r = {k: fk[k] / hw[k] for k in ("read", "build", "solve", "optimizer", "total")}
         ratio_rows.append([f"{n}", f"{r['read']:.2f}x", f"{r['build']:.2f}x", f"{r['optimizer']:.2f}x",
                            f"{r['solve']:.2f}x", f"{r['total']:.2f}x",
-                           "ok" if max(r["build"], r["solve"]) <= TARGET else f"OVER {TARGET}",
+                           "ok" if max(r["read"], r["build"]) <= TARGET and r["total"] <= TOTAL_TARGET else "OVER",
                            "same" if same else "DIFFERENT", repeats])
     tmp.cleanup()
     notes += lm_defaults_warning()
@@ -136,8 +137,9 @@ def run(quick: bool = False) -> dict:
                   "solve ms", "post ms", "total ms", "us/state", "iters", "final cost"], rows,
                  "(b) batch LM, pose chain (odometry + origin prior + absolute pose every 100 states), "
                  "marginals off")
-    text += "\n\n" + table(["states", "read", "build", "optimizer", "solve", "total", f"build&solve<={TARGET}",
-                             "final cost", "runs"], ratio_rows, "(b) ratios fusionkit / hand-written")
+    text += "\n\n" + table(["states", "read", "build", "optimizer", "solve", "total",
+                             f"read&build<={TARGET}, total<={TOTAL_TARGET}", "final cost", "runs"], ratio_rows,
+                            "(b) ratios fusionkit / hand-written")
     text += ("\nsolve = optimizer + checks (fusionkit: check_constrained before, check_solution after, graph "
              "assembly); hand-written solve = LevenbergMarquardtOptimizer(...).optimize(). post = trajectories, "
              "parameters, evaluation, residuals_by_entry. total includes load (config validation).")

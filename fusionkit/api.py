@@ -12,7 +12,7 @@ from __future__ import annotations
 from . import hookimpl
 from .components import (CheckScope, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
                          Spec)
-from .data.association import Association, interpolate_poses, nearest, segment_ids
+from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
 from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
 from .geometry import body_point_range, fit_range_origin, range_factor
@@ -26,7 +26,7 @@ from .robots.registered import robot_description_data, robot_description_files
 from .models.simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
 from .testing import FactorExample
 
-API_VERSION = "1.0"
+API_VERSION = "1.1"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -42,7 +42,7 @@ __all__ = [
     "gaussian", "pose_sigmas", "pose_sigma_schema", "POSE_SIGMA_SCHEMA",
     # streams and association with states
     "Stream", "POSE_COLUMNS", "PLANAR_POSE_COLUMNS", "pose_stream", "pose_array_from", "poses_from_array",
-    "Association", "nearest", "interpolate_poses", "segment_ids",
+    "Association", "nearest", "TOLERANCE_SCHEMA", "interpolate_poses", "segment_ids",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment",
     "differential_drive_twist",

@@ -2,9 +2,10 @@
 
 A plugin returns these classes from its registration hooks (see `hookspecs.py`). Each class
 declares a unique `name`, a one-line `summary`, and a JSON `schema` for the keys of its config
-entry (besides `type`, `label` and, for factors, `robust`). Keys named in `robot_fields` must
-name a robot of the config and keys in `stream_fields` a stream: the core checks them before
-any work starts. `check()` adds semantic checks; raise `spec.error(key, message)`.
+entry (besides `type`, `label` and, for factors, `robust`), with the `default` of each optional key
+that has one: the loader fills them into the entry, so code reads `spec["key"]`. Keys named in
+`robot_fields` must name a robot of the config and keys in `stream_fields` a stream: the core
+checks them before any work starts. `check()` adds semantic checks; raise `spec.error(key, message)`.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from .config.defaults import merged, with_default_keywords
 from .config.yamlio import Document
 
 if TYPE_CHECKING:
@@ -26,7 +28,8 @@ if TYPE_CHECKING:
 
 @dataclass
 class Spec:
-    """One entry of a config list (a factor, source, initializer) with its location for errors."""
+    """One entry of a config list (a factor, source, initializer) with its location for errors;
+    `data` is the entry as written plus its schema's defaults for the keys it omits."""
 
     data: dict
     doc: Document
@@ -187,19 +190,16 @@ class Initializer(Component):
         """Set initial values of the variables this initializer is responsible for."""
 
 
-def _merged(defaults: dict, params: dict) -> dict:
-    out = dict(defaults)
-    for key, value in params.items():
-        base = defaults.get(key)
-        out[key] = _merged(base, value) if isinstance(base, dict) and isinstance(value, dict) else value
-    return out
-
-
 class Simulator(Component):
     """Generates a synthetic dataset with its truth. `schema` covers its parameters and
-    `defaults` gives the value of every optional one."""
+    `defaults` gives the value of every optional one: the one place they are declared; the class's
+    `schema` then shows each as its `default` keyword too (`fusionkit plugins --json`)."""
 
     defaults: ClassVar[dict] = {}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.schema = with_default_keywords(cls.schema, cls.defaults)
 
     @classmethod
     def resolve(cls, params: dict, doc: Document, path: tuple = ()) -> dict:
@@ -207,7 +207,7 @@ class Simulator(Component):
         keeps the default translation), validated as a whole against `schema`; errors are located
         at `path` in `doc`."""
         from .config.schema import validate_against
-        full = _merged(cls.defaults, params)
+        full = merged(cls.defaults, params)
         validate_against(doc, cls.schema, full, path)
         return full
 

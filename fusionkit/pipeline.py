@@ -14,7 +14,7 @@ from .components import SourceOutput
 from .config.loader import RunConfig
 from .config.yamlio import load_yaml
 from .data.files import read_csv_stream, read_tum
-from .data.stream import Stream, pose_array_from, pose_stream
+from .data.stream import Stream, pose_array_from, pose_array_of, pose_stream
 from .errors import DataError, SolverError
 from .eval.parameters import parameter_errors
 from .eval.states import StateSeries, state_errors, state_series
@@ -79,7 +79,7 @@ class RunResult:
         notes reach problem.notes in build_problem), data not used, and the evaluation's warnings."""
         notes = [*self.problem.notes, *(n for s in self.truth.trajectories.values() for n in s.notes),
                  *evaluation_notes(self.evaluation)]
-        if self.config.output.get("state_covariances") and not self.config.solver.get("marginals", True):
+        if self.config.output["state_covariances"] and not self.config.solver["marginals"]:
             notes.append("output.state_covariances: no covariances written, solver.marginals is false")
         return notes
 
@@ -142,12 +142,9 @@ def _marginal_keys(problem: Problem, state_families: set[tuple[str, str]] | bool
     """Every parameter, and the per-state variables of `state_families` ((robot, family) pairs, or all
     of them with True): those with truth to check their sigmas against, or all when asked."""
     keys = set()
-    for k in problem.initial.keys():
-        if k in problem.fixed_keys:
-            continue  # held at its value: no uncertainty to report
-        fam = problem.keys.decode(k)[0]
+    for fam, group in problem.keys.group(problem.initial.keys()):
         if fam.kind != STATE or state_families is True or (fam.robot, fam.name) in state_families:
-            keys.add(k)
+            keys.update(k for k in group if k not in problem.fixed_keys)  # fixed: held, no uncertainty
     return keys
 
 
@@ -155,44 +152,47 @@ def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndar
     """Trajectories (TUM-ready pose streams) of the robots whose states are poses, with the position
     1-sigma along the world axes where covariances exist; other state types are reported as series."""
     trajs, sigmas = {}, {}
+    present = set(values.keys())
     for robot, states in problem.states.items():
         vt = states.family.vartype
         if vt.name not in ("pose3", "pose2"):
             continue
         # only states some factor declared a pose for (a robot may have parameters only, or
         # states outside the span of its pose streams)
-        ks = [k for k in range(len(states)) if values.exists(states.key(k))]
+        keys = states.family.keys(range(len(states)))
+        ks = [k for k, key in enumerate(keys) if key in present]
         if not ks:
             continue
-        poses, sig = [], []
-        for k in ks:
-            key = states.key(k)
-            p = vt.read(values, key)
-            if vt.name == "pose2":
-                rot, pos_idx = gtsam.Rot2(p.theta()).matrix(), [0, 1]
-                p = gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0]))
-            else:
-                rot, pos_idx = p.rotation().matrix(), [3, 4, 5]
-            poses.append(p)
-            if key in cov:
-                c = cov[key][np.ix_(pos_idx, pos_idx)]
-                sig.append(np.sqrt(np.diag(rot @ c @ rot.T)))
-        trajs[robot] = pose_stream(robot, states.t[ks], pose_array_from(poses), f"estimate:{robot}")
-        if len(sig) == len(ks):
-            sigmas[robot] = np.asarray(sig)
+        keys = [keys[k] for k in ks]
+        planar = vt.name == "pose2"
+        if planar:  # lifted to the plane z = 0
+            read = [values.atPose2(k) for k in keys]
+            arr = pose_array_from([gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0])) for p in read])
+        else:
+            rows = _pose3_rows(values, keys)
+            arr = pose_array_of(rows[:, :9].reshape(-1, 3, 3), rows[:, 9:])
+        trajs[robot] = pose_stream(robot, states.t[ks], arr, f"estimate:{robot}")
+        if all(k in cov for k in keys):  # position covariance (tangent space, body axes) -> world axes
+            rot = [gtsam.Rot2(p.theta()).matrix() for p in read] if planar else rows[:, :9].reshape(-1, 3, 3)
+            idx = [0, 1] if planar else [3, 4, 5]
+            sigmas[robot] = np.asarray([np.sqrt(np.diag(r @ cov[k][np.ix_(idx, idx)] @ r.T))
+                                        for r, k in zip(rot, keys)])
     return trajs, sigmas
+
+
+def _pose3_rows(values: gtsam.Values, keys: list[int]) -> np.ndarray:
+    """(n, 12) rows [rotation matrix row by row, translation] of the Pose3 values at `keys`: two calls
+    for all of them, not one per key."""
+    rows = gtsam.utilities.extractPose3(values)  # every Pose3 of `values`, in key order
+    have = np.asarray(gtsam.utilities.allPose3s(values).keys(), dtype=np.uint64)
+    return rows[np.searchsorted(have, np.asarray(keys, dtype=np.uint64))]
 
 
 def _parameters(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarray]):
     out: dict[str, dict[str, ParameterEstimate]] = {}
-    by_family: dict[int, list[int]] = {}
-    for k in problem.initial.keys():
-        fam, idx = problem.keys.decode(k)
-        if fam.kind != STATE:
-            by_family.setdefault(fam.id, []).append(k)
-    for keys in by_family.values():
-        fam = problem.keys.decode(keys[0])[0]
-        keys = sorted(keys)
+    for fam, keys in problem.keys.group(problem.initial.keys()):
+        if fam.kind == STATE:
+            continue
         vals = [fam.vartype.read(values, k) for k in keys]
         sig = np.array([np.sqrt(np.diag(cov[k])) for k in keys]) if all(k in cov for k in keys) else None
         series_t = None
@@ -206,7 +206,7 @@ def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth:
     """Per robot with truth: states, matched_poses, ATE/RPE and, with sigmas, the shares inside 1/2/3 sigma
     and their verdict; parameter errors against the truth calibration."""
     ev: dict[str, Any] = {}
-    align = config.truth.get("align", "none")
+    align = config.truth["align"]
     for robot, ref in truth.trajectories.items():
         if robot not in trajectories:
             continue
@@ -231,7 +231,7 @@ def residuals_by_entry(problem: Problem, final: gtsam.Values) -> dict[str, dict]
         groups.setdefault(r.label, []).append(r.factor)
     out = {}
     for label, factors in groups.items():
-        rms = [float(np.sqrt(np.mean(np.concatenate([np.atleast_1d(f.unwhitenedError(v)) for f in factors]) ** 2)))
+        rms = [float(np.sqrt(np.mean(np.concatenate([f.unwhitenedError(v) for f in factors]) ** 2)))
                for v in (problem.initial, final)]
         out[label] = {"factors": len(factors), "initial_rms": rms[0], "final_rms": rms[1]}
     return out
@@ -274,7 +274,7 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     problem = build_problem(config, streams, progress)
     timings["build_s"] = time.perf_counter() - tic
     tic = time.perf_counter()
-    marginal_keys = _marginal_keys(problem, config.output.get("state_covariances", False) or truth.families(config))
+    marginal_keys = _marginal_keys(problem, config.output["state_covariances"] or truth.families(config))
     if config.refined_factors:
         problem, solution = _solve_refined(config, streams, problem, marginal_keys, progress)
     else:

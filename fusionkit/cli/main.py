@@ -52,7 +52,7 @@ def cmd_run(args) -> int:
             progress.stage("writing outputs")
         try:
             with atomic_directory(out, "run", inputs) as tmp:
-                write_outputs(result, tmp, plots=config.output.get("plots", True) and not args.no_plots)
+                write_outputs(result, tmp, plots=config.output["plots"] and not args.no_plots)
         except OSError as exc:
             raise _write_error(out, exc) from None
     print(summary_text(result))
@@ -118,10 +118,44 @@ def _listed(reg, kind: str, name: str) -> dict:
     return {"name": name, "summary": reg.get(kind, name).summary, "schema": reg.get(kind, name).schema}
 
 
+def _kind_label(kind: str) -> str:
+    return "description" if kind == "robot_descriptions" else kind[:-1].replace("_", " ")
+
+
+COMMON_KEYS = {"factor_types": "label, robust {kernel, k}", "sources": "label", "initializers": "label"}
+
+
+def component_keys(reg, name: str) -> list[str]:
+    """`fusionkit plugins NAME`: each installed item called NAME with its summary and, for a component,
+    its keys: `required`, the default a config that omits it gets, or `optional`; and what each accepts."""
+    from ..config.defaults import key_rows
+    from ..plugins import REGISTRATIONS
+    lines = []
+    for kind in REGISTRATIONS:
+        if reg.get(kind, name) is None:
+            continue
+        item = _listed(reg, kind, name)
+        lines.append(f"{_kind_label(kind)} {name} ({reg.provider[(kind, name)]}): {item['summary']}")
+        if "file" in item:
+            lines.append(f"  file: {item['file']}")
+            continue
+        rows = key_rows(item["schema"])
+        widths = [max((len(row[i]) for row in rows), default=0) for i in (0, 1)]
+        lines += [f"  {key:<{widths[0]}}  {status:<{widths[1]}}  {what}" for key, status, what in rows]
+        if kind in COMMON_KEYS:
+            lines.append(f"  (every entry also accepts: {COMMON_KEYS[kind]})")
+    if not lines:
+        raise FusionkitError(f"nothing installed is called {name!r}; `fusionkit plugins` lists every name")
+    return lines
+
+
 def cmd_plugins(args) -> int:
     from ..plugins import REGISTRATIONS, registry
 
     reg = registry()
+    if args.name:
+        print("\n".join(component_keys(reg, args.name)))
+        return 0
     listing = {}
     for plugin, provided in reg.by_plugin().items():
         listing[plugin] = {kind: [_listed(reg, kind, n) for n in names] for kind, names in provided.items() if names}
@@ -131,7 +165,7 @@ def cmd_plugins(args) -> int:
     for plugin, provided in listing.items():
         print(plugin)
         for kind in REGISTRATIONS:
-            label = "description" if kind == "robot_descriptions" else kind[:-1].replace("_", " ")
+            label = _kind_label(kind)
             for item in provided.get(kind, []):
                 print(f"  {label:<12} {item['name']:<28} {item['summary']}")
     return 0
@@ -213,7 +247,10 @@ def parser() -> argparse.ArgumentParser:
         cmd.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                          help="override a config value, e.g. solver.type=isam2 (repeatable)")
     plug = sub.add_parser("plugins", parents=common, help="list installed plugins and what each provides")
-    plug.add_argument("--json", action="store_true")
+    plug.add_argument("name", nargs="?", help="one component (e.g. pose.absolute): its keys, which are required, "
+                      "and the default of each optional one")
+    plug.add_argument("--json", action="store_true", help="everything as JSON, with each component's schema "
+                      "(defaults as `default`)")
     sim = sub.add_parser("simulate", parents=common, epilog_factory=scenario_listing,
                          help="write a synthetic dataset, its truth and a runnable config")
     sim.add_argument("scenario", help="an installed scenario (listed below)")

@@ -10,8 +10,9 @@ from ..components import CheckScope, Spec
 from ..graph.variables import vartype_named
 from ..robots.calibration_file import apply_calibration, calibration_entries
 from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
+from .defaults import with_defaults
 from .overrides import apply_override, new_key_note, parse_key_path
-from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, validate_against
+from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against
 from .yamlio import Document, load_yaml
 
 COMMON_ENTRY_KEYS = {"type", "label"}
@@ -86,7 +87,8 @@ def _entry_schema(cls: type, extra_keys: dict) -> dict:
 
 
 def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys: dict) -> list:
-    """Each entry's type must be installed and its keys must fit the type's schema."""
+    """Each entry's type must be installed and its keys must fit the type's schema; then the
+    schema's defaults fill the keys the entry omits (`spec.data`; the document keeps what was written)."""
     instances = []
     for spec in specs:
         cls = reg.get(kind, spec.type)
@@ -95,9 +97,17 @@ def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys:
         if "robust" in extra_keys and "robust" in spec.data and not cls.accepts_robust:
             raise spec.error("robust", f"factor type {spec.type} takes no robust kernel (its noise comes from its "
                              "model); remove `robust:` from this entry")
-        validate_against(doc, _entry_schema(cls, extra_keys), spec.data, spec.path)
+        schema = _entry_schema(cls, extra_keys)
+        validate_against(doc, schema, spec.data, spec.path)
+        spec.data = with_defaults(schema, spec.data)
         instances.append(cls())
     return instances
+
+
+def solver_settings(raw: dict) -> dict:
+    """`solver:` with every default: the schema's, then those that depend on its type."""
+    settings = with_defaults(CONFIG_SCHEMA["properties"]["solver"], raw)
+    return {**settings, **{k: v for k, v in SOLVER_TYPE_DEFAULTS[settings["type"]].items() if k not in settings}}
 
 
 def _check_references(specs: list[Spec], instances: list, robots: dict, streams: dict) -> None:
@@ -215,9 +225,10 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
         _check_references(specs, objs, robots, streams)
         for spec, obj in zip(specs, objs):
             obj.check(spec, scope)
-    refined = _refined_factors(doc, factors, factor_objs, scope)
+    solver = solver_settings(dict(doc.data.get("solver") or {}))
+    refined = _refined_factors(doc, solver, factors, factor_objs, scope)
 
-    truth = dict(doc.data.get("truth") or {})
+    truth = with_defaults(CONFIG_SCHEMA["properties"]["truth"], dict(doc.data.get("truth") or {}))
     for robot, file in (truth.get("trajectories") or {}).items():
         if robot not in robots:
             raise doc.error(("truth", "trajectories", robot), f"unknown robot {robot!r}; the config defines: "
@@ -233,19 +244,20 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
             _require_file(doc, ("truth", "states", robot, family), base / file)
 
     return RunConfig(doc, base, doc.data.get("name", Path(path).stem), int(doc.data.get("seed", 0)),
-                     robots, sources, factors, initializers, dict(doc.data.get("solver") or {}), truth,
-                     dict(doc.data.get("output") or {}), streams, stream_source, refined, notes)
+                     robots, sources, factors, initializers, solver, truth,
+                     with_defaults(CONFIG_SCHEMA["properties"]["output"], dict(doc.data.get("output") or {})),
+                     streams, stream_source, refined, notes)
 
 
-def _refined_factors(doc: Document, factors: list[Spec], objs: list, scope) -> list[Spec]:
+def _refined_factors(doc: Document, solver: dict, factors: list[Spec], objs: list, scope) -> list[Spec]:
     """The factor entries of the second solve that `solver.refine` asks for: {label: settings} merged
     into the entries with that label (e.g. a model tolerance tightened once the first solve has
     converged), each checked like any entry. Empty when there is no refine."""
-    refine = (doc.data.get("solver") or {}).get("refine")
+    refine = solver.get("refine")
     if not refine:
         return []
     path = ("solver", "refine")
-    if (doc.data["solver"].get("type") or "batch") != "batch":
+    if solver["type"] != "batch":
         raise doc.error(path, "only the batch solver refines (a second solve from the first one's estimate)")
     labels = {spec.get("label") for spec in factors if spec.get("label")}
     for label, settings in refine.items():
@@ -262,7 +274,9 @@ def _refined_factors(doc: Document, factors: list[Spec], objs: list, scope) -> l
             refined.append(spec)
             continue
         merged = Spec({**spec.data, **settings}, doc, spec.path)
-        validate_against(doc, _entry_schema(type(obj), FACTOR_KEYS), merged.data, path + (spec["label"],))
+        schema = _entry_schema(type(obj), FACTOR_KEYS)
+        validate_against(doc, schema, merged.data, path + (spec["label"],))
+        merged.data = with_defaults(schema, merged.data)
         obj.check(merged, scope)
         refined.append(merged)
     return refined

@@ -62,20 +62,20 @@ CONFIG_SCHEMA = {
         "solver": {
             "type": "object",
             "properties": {
-                "type": {"enum": ["batch", "isam2", "fixed_lag"]},
-                "method": {"enum": ["lm", "gn", "dogleg"]},
-                "factorization": {"enum": ["cholesky", "qr"]},
-                "ordering": {"enum": ["colamd", "metis"]},
-                "max_iterations": {"type": "integer", "minimum": 1},
-                "relative_tolerance": POSITIVE,
-                "absolute_tolerance": POSITIVE,
-                "lag": POSITIVE,
-                "warmup": {"type": "number", "minimum": 0},
-                "relinearize_threshold": POSITIVE,
-                "max_cost_ratio": POSITIVE,
-                "marginals": {"type": "boolean"},
-                "a_posteriori_sigmas": {"type": "boolean"},
-                "refine": {"type": "object", "additionalProperties": {"type": "object"}},
+                "type": {"enum": ["batch", "isam2", "fixed_lag"], "default": "batch"},
+                "method": {"enum": ["lm", "gn", "dogleg"], "default": "lm"},
+                "factorization": {"enum": ["cholesky", "qr"]},  # default by type: SOLVER_TYPE_DEFAULTS
+                "ordering": {"enum": ["colamd", "metis"], "default": "colamd"},
+                "max_iterations": {"type": "integer", "minimum": 1, "default": 100},
+                "relative_tolerance": {**POSITIVE, "default": 1e-6},
+                "absolute_tolerance": {**POSITIVE, "default": 1e-9},
+                "lag": {**POSITIVE, "default": 2.0},
+                "warmup": {"type": "number", "minimum": 0, "default": 0},
+                "relinearize_threshold": {**POSITIVE, "default": 0.01},
+                "max_cost_ratio": POSITIVE,  # default by type: SOLVER_TYPE_DEFAULTS
+                "marginals": {"type": "boolean", "default": True},
+                "a_posteriori_sigmas": {"type": "boolean", "default": False},
+                "refine": {"type": "object", "additionalProperties": {"type": "object"}},  # none: one solve
             },
             "additionalProperties": False,
         },
@@ -86,18 +86,30 @@ CONFIG_SCHEMA = {
                 "calibration": {"type": "string"},
                 "states": {"type": "object",
                            "additionalProperties": {"type": "object", "additionalProperties": {"type": "string"}}},
-                "align": {"enum": ["none", "se3", "sim3"]},
+                "align": {"enum": ["none", "se3", "sim3"], "default": "none"},
             },
             "additionalProperties": False,
         },
         "output": {
             "type": "object",
-            "properties": {"plots": {"type": "boolean"}, "state_covariances": {"type": "boolean"}},
+            "properties": {"plots": {"type": "boolean", "default": True},
+                           "state_covariances": {"type": "boolean", "default": False}},
             "additionalProperties": False,
         },
     },
     "required": ["robots", "factors"],
     "additionalProperties": False,
+}
+
+
+# solver settings whose default depends on solver.type: iSAM2 and the fixed-lag smoother factor by QR
+# (Cholesky declared weakly observed directions, a scale with a loose prior, singular); a fixed-lag
+# smoother's full-graph cost is not judged unless asked for (its states keep the estimate they had
+# when they left the window), so it has no chi-square gate by default
+SOLVER_TYPE_DEFAULTS = {
+    "batch": {"factorization": "cholesky", "max_cost_ratio": 10.0},
+    "isam2": {"factorization": "qr", "max_cost_ratio": 10.0},
+    "fixed_lag": {"factorization": "qr", "max_cost_ratio": math.inf},
 }
 
 

@@ -7,6 +7,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+# an entry's `tolerance:` (s): a sample pairs with the nearest state at most this far away in time
+TOLERANCE_SCHEMA = {"type": "number", "minimum": 0, "default": 0.005}
+
 
 @dataclass
 class Association:

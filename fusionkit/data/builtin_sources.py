@@ -87,8 +87,8 @@ class SimulateSource(Source):
     name = "simulate"
     summary = "in-process synthetic data from a registered simulator (streams + truth)"
     schema = {"type": "object",
-              "properties": {"scenario": {"type": "string"}, "seed": {"type": "integer"},
-                             "params": {"type": "object"}},
+              "properties": {"scenario": {"type": "string"}, "seed": {"type": "integer", "default": 0},
+                             "params": {"type": "object", "default": {}}},
               "required": ["scenario"], "additionalProperties": False}
 
     def _simulator(self, spec: Spec):
@@ -97,7 +97,7 @@ class SimulateSource(Source):
         cls = reg.get("simulators", spec["scenario"])
         if cls is None:
             raise spec.error("scenario", reg.unknown("simulators", spec["scenario"]))
-        return cls(), cls.resolve(dict(spec.get("params") or {}), spec.doc, spec.path + ("params",))
+        return cls(), cls.resolve(dict(spec["params"]), spec.doc, spec.path + ("params",))
 
     def check(self, spec: Spec, scope) -> None:
         self._simulator(spec)
@@ -108,7 +108,7 @@ class SimulateSource(Source):
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
         sim, params = self._simulator(spec)
-        return sim.simulate(params, np.random.default_rng(spec.get("seed", 0)))
+        return sim.simulate(params, np.random.default_rng(spec["seed"]))
 
 
 @hookimpl

@@ -10,26 +10,34 @@ from typing import Callable
 import numpy as np
 
 from ..errors import DataError
+from .plain_text import plain_csv, plain_table
 from .stream import POSE_COLUMNS, Stream, check_samples
 
 
-def _read_text(path: Path) -> str:
-    """The file as text with \\n line ends, as open() reads it; a byte-order mark (Excel) is dropped."""
+def _read_bytes(path: Path) -> bytes:
     try:
-        data = path.read_bytes()
-        # ASCII (most data files) decodes some 20x faster than UTF-8 and cannot hold a byte-order mark
-        text = data.decode("ascii") if data.isascii() else data.decode("utf-8-sig")
+        return path.read_bytes()
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
     except IsADirectoryError:
         raise DataError(f"{path}: is a folder; expected a file") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
+
+
+def _decode(path: Path, data: bytes) -> str:
+    """The file's text with \\n line ends, as open() reads it; a byte-order mark (Excel) is dropped."""
+    try:
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = exc.object[:exc.start].count(b"\n") + 1
         raise DataError(f"{path}:{line}: cannot read: byte {exc.start} is not UTF-8 text; expected a text file") \
             from None
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.__class__.__name__}: {exc.strerror or exc})") from None
     return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text else text
+
+
+def _read_text(path: Path) -> str:
+    return _decode(path, _read_bytes(path))
 
 
 # |norm - 1| above this is not rounding: quaternions printed with 4 decimals are within 1e-4 of unit
@@ -69,34 +77,6 @@ def unit_quaternions(q: np.ndarray, origin: str, locate: Callable[[int], str],
             "renormalized")
 
 
-def _first_content_line(text: str) -> tuple[int, int]:
-    """(offset, line number) of the first line of `text` that is neither blank nor a `#` comment
-    (offset len(text) when there is none)."""
-    offset, line = 0, 1
-    while offset < len(text):
-        end = text.find("\n", offset)
-        end = len(text) if end < 0 else end
-        s = text[offset:end].strip()
-        if s and not s.startswith("#"):
-            break
-        offset, line = end + 1, line + 1
-    return min(offset, len(text)), line
-
-
-def _plain_rows(body: str, width: int, delimiter: str | None) -> np.ndarray | None:
-    """The rows of `body` when every line is `width` numbers (no comment, blank or quoted line),
-    parsed by numpy in C (it reads numbers exactly as float() does); None otherwise: the caller
-    then reads line by line, to say where a line is wrong."""
-    if not body.strip() or "#" in body or '"' in body:
-        return None
-    try:  # numpy reads bytes a little faster than text
-        a = np.loadtxt(io.BytesIO(body.encode()), delimiter=delimiter, comments=None, ndmin=2, dtype=float)
-    except ValueError:
-        return None
-    lines = body.count("\n") + (not body.endswith("\n"))
-    return a if a.shape == (lines, width) else None
-
-
 def _is_data(row: list[str]) -> bool:
     """A CSV row that is neither blank nor a `#` comment."""
     return bool(row) and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
@@ -130,13 +110,14 @@ def read_csv_header(path: Path) -> tuple[str, ...]:
 
 def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
     """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
-    text = _read_text(path)
-    plain = _plain_csv(text)
+    raw = _read_bytes(path)
+    plain = plain_csv(raw)
     if plain is None:
-        header, data, lines = _csv_rows(path, text, required)
+        header, data, lines = _csv_rows(path, _decode(path, raw), required)
     else:
-        header, data, lines = plain
-        _check_columns(path, lines[0], header, required)
+        header, data, first = plain
+        lines = first + np.arange(len(data) + 1)
+        _check_columns(path, first, header, required)
     check_samples(data[:, 0], data[:, 1:], str(path), lines=np.asarray(lines[1:]))
     check_seconds(f"{path}:{lines[1]}", data[:, 0])
     stream = Stream(name, data[:, 0], tuple(header[1:]), data[:, 1:], str(path))
@@ -155,18 +136,6 @@ def _check_columns(path: Path, line: int, header: list[str], required: tuple[str
     if missing:
         raise DataError(f"{path}:{line}: missing column(s) {', '.join(missing)}; header has "
                         f"{','.join(header)}, expected at least t,{','.join(required)}")
-
-
-def _plain_csv(text: str) -> tuple[list[str], np.ndarray, np.ndarray] | None:
-    """(header, rows, line numbers of the header and the rows) when the file is `#`/blank lines, an
-    unquoted header, then plain numeric rows (see _plain_rows); None otherwise."""
-    offset, first = _first_content_line(text)
-    end = text.find("\n", offset)
-    if end < 0 or '"' in text[offset:end]:
-        return None
-    header = [h.strip() for h in text[offset:end].split(",")]
-    data = _plain_rows(text[end + 1:], len(header), ",") if _is_data(header) else None
-    return None if data is None else (header, data, first + np.arange(len(data) + 1))
 
 
 def _csv_rows(path: Path, text: str, required: tuple[str, ...]) -> tuple[list[str], np.ndarray, list[int]]:
@@ -214,13 +183,12 @@ def _is_float(text: str) -> bool:
 
 def read_tum(path: Path, name: str) -> Stream:
     """TUM trajectory: `t x y z qx qy qz qw` per line, space separated, `#` comments."""
-    text = _read_text(path)
-    offset, first = _first_content_line(text)
-    a = _plain_rows(text[offset:], 8, None)
-    if a is None:
-        a, lines = _tum_rows(path, text)
+    raw = _read_bytes(path)
+    plain = plain_table(raw, 8)
+    if plain is None:
+        a, lines = _tum_rows(path, _decode(path, raw))
     else:
-        lines = first + np.arange(len(a))
+        a, lines = plain[0], plain[1] + np.arange(len(plain[0]))
     norms = np.linalg.norm(a[:, 4:], axis=1)
     if np.any(norms < 1e-9):
         bad = int(np.argmax(norms < 1e-9))

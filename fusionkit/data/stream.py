@@ -8,6 +8,7 @@ import gtsam
 import numpy as np
 
 from ..errors import DataError
+from .quaternions import quaternions_xyzw
 
 POSE_COLUMNS = ("x", "y", "z", "qx", "qy", "qz", "qw")
 PLANAR_POSE_COLUMNS = ("x", "y", "theta")
@@ -63,18 +64,20 @@ class Stream:
 
 def poses_from_array(a: np.ndarray) -> list[gtsam.Pose3]:
     """(N, 7) x y z qx qy qz qw -> Pose3 list."""
-    a, pose, quaternion = np.asarray(a, dtype=float), gtsam.Pose3, gtsam.Rot3.Quaternion
-    return [pose(quaternion(qw, qx, qy, qz), t) for (qx, qy, qz, qw), t in zip(a[:, 3:].tolist(), a[:, :3])]
+    a, pose, quaternion = np.asarray(a, dtype=float).reshape(-1, 7), gtsam.Pose3, gtsam.Rot3.Quaternion
+    qx, qy, qz, qw = a[:, 3:].T.tolist()  # columns as lists of floats: no Python object per row
+    return [pose(quaternion(w, x, y, z), t) for w, x, y, z, t in zip(qw, qx, qy, qz, a[:, :3])]
 
 
 def pose_array_from(poses: list[gtsam.Pose3]) -> np.ndarray:
-    """Pose3 list -> (N, 7) x y z qx qy qz qw."""
-    out = np.empty((len(poses), 7))
-    for i, p in enumerate(poses):
-        q = p.rotation().toQuaternion()
-        out[i, :3] = p.translation()
-        out[i, 3:] = (q.x(), q.y(), q.z(), q.w())
-    return out
+    """Pose3 list -> (N, 7) x y z qx qy qz qw (the quaternion of p.rotation().toQuaternion())."""
+    m = np.array([p.matrix() for p in poses], dtype=float).reshape(-1, 4, 4)
+    return pose_array_of(m[:, :3, :3], m[:, :3, 3])
+
+
+def pose_array_of(rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotation matrices and (N, 3) translations -> (N, 7) x y z qx qy qz qw, as pose_array_from."""
+    return np.column_stack([np.reshape(translations, (-1, 3)), quaternions_xyzw(rotations)])
 
 
 def pose_stream(name: str, t: np.ndarray, poses: list[gtsam.Pose3] | np.ndarray, origin: str = "") -> Stream:

@@ -46,14 +46,15 @@ class StateSeries:
 def state_series(problem, values: gtsam.Values, covariances: dict[int, np.ndarray]) -> dict[tuple[str, str], StateSeries]:
     """Every per-state family of every robot, over the states a factor declared it at."""
     out = {}
+    present = set(values.keys())
     for fam in problem.keys.families():
         if fam.kind != STATE or fam.robot not in problem.states:
             continue
         states = problem.states[fam.robot]
-        ks = [k for k in range(len(states)) if values.exists(fam.key(k))]
+        ks = [k for k, key in enumerate(fam.keys(range(len(states)))) if key in present]
         if not ks:
             continue
-        keys = [fam.key(k) for k in ks]
+        keys = fam.keys(ks)
         sigma = np.array([np.sqrt(np.diag(covariances[k])) for k in keys]) \
             if all(k in covariances for k in keys) else None
         out[(fam.robot, fam.name)] = StateSeries(fam.robot, fam.name, fam.vartype, states.t[ks],

@@ -172,9 +172,11 @@ class BuildContext:
         """state_key for many states at once: the keys of the robot's states ks (in that order)."""
         s = self.states[robot]
         keys = s.family.keys(ks)
-        for key, k in zip(keys, np.asarray(ks).tolist()):
-            if key not in self.key_time:
-                self._declare(key, s.family.vartype.zero(), float(s.t[k]))
+        new = list(dict.fromkeys(key for key in keys if key not in self.key_time))
+        if new:  # declared as in state_key; one zero value serves them all (Values copies it)
+            self.key_time.update(zip(new, s.t[np.asarray(new) - s.family.key(0)].tolist()))
+            zero = s.family.vartype.zero()
+            self._pending.update((key, zero) for key in new)
         return keys
 
     def pose_key(self, robot: str, k: int) -> int:
@@ -235,15 +237,16 @@ class BuildContext:
         """Initial value of a variable (an initializer's estimate); a fixed parameter keeps its value."""
         if key in self.fixed_keys:
             return
-        if key not in self.key_time:
-            raise KeyError(f"{self.keys.name_of(key)} is not a variable of the graph")
-        if key in self._pending and type(self._pending[key]) is type(value):  # not inserted yet: replace it
+        waiting = self._pending.get(key)
+        if waiting is not None and type(waiting) is type(value):  # not inserted yet: replace it
             self._pending[key] = value.copy() if isinstance(value, np.ndarray) else value
+        elif key not in self.key_time:
+            raise KeyError(f"{self.keys.name_of(key)} is not a variable of the graph")
         else:  # in the Values (or another Python type): gtsam converts and checks the type
             if key in self._pending:
                 self._values.insert(key, self._pending.pop(key))
             self._values.update(key, value)
-        if self.awaiting_value.pop(key, None) is not None:
+        if self.awaiting_value and self.awaiting_value.pop(key, None) is not None:
             self.value_source[self.keys.name_of(key)] = self.current_initializer
 
     # --- factors -----------------------------------------------------------------------------
@@ -264,8 +267,16 @@ class BuildContext:
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))
 
-    def associate(self, stream: Stream, robot: str, tolerance: float, spec: Spec) -> Association:
-        """Nearest-stamp association of `stream` rows with the robot's states; counts what is left."""
+    def associate(self, stream: Stream, robot: str, tolerance: float | Spec, spec: Spec | None = None) -> Association:
+        """Nearest-stamp association of `stream` rows with the robot's states; counts what is left.
+        `associate(stream, robot, spec)`: within the entry's `tolerance` (s; its schema declares the key
+        as TOLERANCE_SCHEMA); `associate(stream, robot, tolerance, spec)`: within the one given."""
+        if spec is None:
+            spec = tolerance
+            if "tolerance" not in spec.data:
+                raise PluginError(f"{spec.label}: {spec.type} associates samples by nearest stamp but its schema "
+                                  "declares no `tolerance` (plugin bug: add \"tolerance\": TOLERANCE_SCHEMA)")
+            tolerance = spec["tolerance"]
         a = nearest(self.state_set(robot, spec).t, stream.t, tolerance)
         if a.unmatched:
             self.notes.append(f"{spec.label}: {a.unmatched} of {len(stream)} samples of stream "

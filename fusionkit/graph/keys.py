@@ -63,6 +63,20 @@ class KeyRegistry:
     def families(self) -> list[Family]:
         return list(self._families.values())
 
+    def group(self, keys) -> list[tuple[Family, list[int]]]:
+        """`keys` by family (in family order), each family's keys in ascending order."""
+        a = np.sort(np.asarray(keys, dtype=np.uint64))
+        ids = a >> np.uint64(INDEX_BITS)
+        cuts = np.flatnonzero(np.diff(ids)) + 1
+        return [(self._family_by_id(int(part[0] >> np.uint64(INDEX_BITS))), part.tolist())
+                for part in np.split(a, cuts) if len(part)]
+
+    def _family_by_id(self, family_id: int) -> Family:
+        fam = self._by_id.get(family_id)
+        if fam is None:
+            raise KeyError(family_id << INDEX_BITS)
+        return fam
+
     def decode(self, key: int) -> tuple[Family, int]:
         fam = self._by_id.get(int(key) >> INDEX_BITS)
         if fam is None:

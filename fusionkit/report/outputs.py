@@ -149,7 +149,7 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
         columns, rows = series.table()
         np.savetxt(out / file, rows, delimiter=",", header=",".join(columns), comments="",
                    fmt=["%.9f"] + ["%.12g"] * (rows.shape[1] - 1))
-    if result.config.output.get("state_covariances"):
+    if result.config.output["state_covariances"]:
         from .covariances import write_state_covariances
         write_state_covariances(result, out / "covariances")
     if plots:

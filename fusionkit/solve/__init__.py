@@ -13,14 +13,14 @@ from .factorization import linear_settings, qr_marginals
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
 
-DEFAULT_MAX_COST_RATIO = 10.0
 FIXED_LAG_ALLOWED_RISE = 9.0  # relative: a fixed-lag cost ten times the initial one is divergence
 
 
 def solve(problem: Problem, settings: dict, marginal_keys: set[int],
           progress: Progress | None = None) -> SolveResult:
-    """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`."""
-    kind = settings.get("type", "batch")
+    """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`.
+    `settings`: the `solver:` section with its defaults (config.loader.solver_settings)."""
+    kind = settings["type"]
     if progress:
         progress.stage(f"solving ({kind})")
     if kind == "batch":
@@ -36,17 +36,17 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     lagged = kind == "fixed_lag"
     result.rejection = check_solution(
         problem, graph, result.values, result.initial_error, result.final_error,
-        settings.get("max_cost_ratio", float("inf") if lagged else DEFAULT_MAX_COST_RATIO),
+        settings["max_cost_ratio"],
         FIXED_LAG_ALLOWED_RISE if lagged else 1e-6)
     result.chi2_per_dof = chi_square_per_dof(graph, result.values, result.final_error)
-    if settings.get("marginals", True) and kind != "fixed_lag":
+    if settings["marginals"] and kind != "fixed_lag":
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
         if kind == "batch" and linear_settings(settings)[0]:
             result.covariances = qr_marginals(graph, result.values, marginal_keys)
         else:
             result.covariances = marginal_covariances(graph, result, marginal_keys)
-        if settings.get("a_posteriori_sigmas") and result.chi2_per_dof is not None:
+        if settings["a_posteriori_sigmas"] and result.chi2_per_dof is not None:
             result.covariances = {k: c * result.chi2_per_dof for k, c in result.covariances.items()}
             result.sigmas_scaled = True
     return result

@@ -42,10 +42,9 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     graph = problem.graph()
     qr, ordering = linear_settings(settings)
     check_constrained(problem, graph, qr, ordering)
-    method = settings.get("method", "lm")
-    rtol = settings.get("relative_tolerance", 1e-6)
-    atol = settings.get("absolute_tolerance", 1e-9)
-    max_iterations = settings.get("max_iterations", 100)
+    method = settings["method"]
+    rtol, atol = settings["relative_tolerance"], settings["absolute_tolerance"]
+    max_iterations = settings["max_iterations"]
     start = time.perf_counter()
     try:
         if method == "dogleg":

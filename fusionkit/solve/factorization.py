@@ -17,8 +17,8 @@ import numpy as np
 
 
 def linear_settings(settings: dict) -> tuple[bool, str]:
-    """(qr, ordering) of a batch solver's settings: `factorization` and `ordering` with their defaults."""
-    return settings.get("factorization", "cholesky") == "qr", settings.get("ordering", "colamd")
+    """(qr, ordering) of a batch solver's resolved settings: `factorization` and `ordering`."""
+    return settings["factorization"] == "qr", settings["ordering"]
 
 
 def eliminate(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str = "colamd"):

@@ -28,11 +28,11 @@ from .result import SolveResult
 
 def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
     p = gtsam.ISAM2Params()
-    p.setRelinearizeThreshold(settings.get("relinearize_threshold", 0.01))
+    p.setRelinearizeThreshold(settings["relinearize_threshold"])
     p.relinearizeSkip = 1
-    # QR by default: Cholesky declared weakly observed directions (a scale with a loose prior)
-    # singular; `factorization: cholesky` is faster where the graph is well conditioned
-    p.setFactorization("CHOLESKY" if settings.get("factorization") == "cholesky" else "QR")
+    # QR by default (config.schema.SOLVER_TYPE_DEFAULTS): Cholesky declared weakly observed directions
+    # (a scale with a loose prior) singular; `factorization: cholesky` is faster where the graph is well conditioned
+    p.setFactorization("CHOLESKY" if settings["factorization"] == "cholesky" else "QR")
     return p
 
 
@@ -108,7 +108,7 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     latency = []
     start = time.perf_counter()
     steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
-    if settings.get("warmup", 0) > 0:
+    if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, values, t, steps = warm_start(problem, steps, settings["warmup"])
         estimate, _ = _timed_step(problem, t, lambda: isam.update(first, values), isam.calculateEstimate)
@@ -133,7 +133,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     `marginal_keys`) it had when it left the window."""
     graph = problem.graph()
     check_constrained(problem, graph)
-    lag = float(settings.get("lag", 2.0))
+    lag = float(settings["lag"])
     smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(settings))
     static = [k for k, t in problem.key_time.items() if t == float("-inf")]
     in_window: dict[int, float] = {}
@@ -143,7 +143,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     start = time.perf_counter()
     now, est = None, gtsam.Values()  # est: the estimate handed out after the latest update
     steps, warm_values, warmup = list(time_steps(problem)), None, 0.0
-    if settings.get("warmup", 0) > 0:
+    if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, warm_values, t, steps = warm_start(problem, steps, settings["warmup"])
         steps.insert(0, (t, first, list(warm_values.keys())))

@@ -8,7 +8,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import FactorExample, FactorType, gaussian, range_factor, Spec
+from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec
 
 from .model import cable_robot
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
@@ -45,7 +45,7 @@ class CableLength(FactorType):
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}, "sigma": SIGMA,
                              "columns": {"type": "array", "items": {"type": "string"}},
-                             "cables": INDEX_LIST, "tolerance": {"type": "number", "minimum": 0}},
+                             "cables": INDEX_LIST, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -60,7 +60,7 @@ class CableLength(FactorType):
         robot = spec["robot"]
         cdpr = cable_robot(ctx.robot(robot))
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        assoc = ctx.associate(stream, robot, spec)
         noise = ctx.noise([spec["sigma"]], spec)
         columns = length_columns(spec, cdpr.n)
         for i in spec.get("cables", range(cdpr.n)):
@@ -109,7 +109,7 @@ class ElasticCableLength(FactorType):
                              "tension_stream": {"type": "string"}, "sigma": SIGMA, "tension_sigma": SIGMA,
                              "columns": {"type": "array", "items": {"type": "string"}},
                              "tension_columns": {"type": "array", "items": {"type": "string"}},
-                             "cables": INDEX_LIST, "tolerance": {"type": "number", "minimum": 0}},
+                             "cables": INDEX_LIST, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "tension_stream", "sigma", "tension_sigma"],
               "additionalProperties": False}
 
@@ -129,9 +129,8 @@ class ElasticCableLength(FactorType):
         desc = ctx.robot(robot)
         cdpr = cable_robot(desc)
         lengths, tensions = ctx.stream(spec["stream"]), ctx.stream(spec["tension_stream"])
-        tol = spec.get("tolerance", 0.005)
-        a_len = ctx.associate(lengths, robot, tol, spec)
-        a_ten = ctx.associate(tensions, robot, tol, spec)
+        a_len = ctx.associate(lengths, robot, spec)
+        a_ten = ctx.associate(tensions, robot, spec)
         tension_row = dict(zip(a_ten.state, a_ten.row))
         columns = length_columns(spec, cdpr.n)
         tcols = spec.get("tension_columns") or [f"T{i}" for i in range(cdpr.n)]

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fusionkit.api import POSE_COLUMNS, fit_range_origin, Initializer, interpolate_poses, nearest, Spec
+from fusionkit.api import POSE_COLUMNS, TOLERANCE_SCHEMA, fit_range_origin, Initializer, interpolate_poses, nearest, Spec
 
 from .factors import check_cdpr, length_columns
 from .model import cable_robot
@@ -65,13 +65,14 @@ class MonteCarloCalibration(Initializer):
                                         "required": ["min", "max"], "additionalProperties": False},
                              "scale_range": {"type": "array", "items": POSITIVE, "minItems": 2, "maxItems": 2},
                              "scale": {"type": "string"}, "sigma": POSITIVE,
-                             "initial_length_spread": POSITIVE,
+                             "initial_length_spread": {**POSITIVE, "default": 0.05},
                              "vo_sigma": {"type": "object",
                                           "properties": {"rotation": NONNEG, "translation": NONNEG},
-                                          "additionalProperties": False},
-                             "particles": {"type": "integer", "minimum": 100},
-                             "seed": {"type": "integer", "minimum": 0},
-                             "tolerance": NONNEG},
+                                          "additionalProperties": False,
+                                          "default": {"rotation": 0.0, "translation": 0.0}},
+                             "particles": {"type": "integer", "minimum": 100, "default": 5000},
+                             "seed": {"type": "integer", "minimum": 0, "default": 0},
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "lengths", "region", "scale_range", "scale", "sigma"],
               "additionalProperties": False}
 
@@ -113,15 +114,13 @@ class MonteCarloCalibration(Initializer):
         nominal = np.asarray(desc.parameters["offset"].values, float)
         L0_guess = z[:, 0] - nominal
         frames = np.searchsorted(vo.t, t[1:], side="right") - np.searchsorted(vo.t, t[0], side="right")
-        vo_sigma = spec.get("vo_sigma", {})
+        vo_sigma = spec["vo_sigma"]
         try:
             cal = calibrate(c, d, z, L0_guess, (spec["region"]["min"], spec["region"]["max"]),
                             tuple(spec["scale_range"]), float(spec["sigma"]),
-                            spread=float(spec.get("initial_length_spread", 0.05)),
-                            particles=int(spec.get("particles", 5000)),
-                            rng=np.random.default_rng(spec.get("seed", 0)),
-                            vo_sigma=(float(vo_sigma.get("rotation", 0.0)), float(vo_sigma.get("translation", 0.0))),
-                            frames=frames)
+                            spread=float(spec["initial_length_spread"]), particles=int(spec["particles"]),
+                            rng=np.random.default_rng(spec["seed"]),
+                            vo_sigma=(float(vo_sigma["rotation"]), float(vo_sigma["translation"])), frames=frames)
         except ValueError as exc:
             raise spec.error("region", f"{exc}: widen the region or initial_length_spread, or check the "
                              "nominal offsets") from None
@@ -137,10 +136,10 @@ class MonteCarloCalibration(Initializer):
 
 
 def length_samples(ctx, spec: Spec, t: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The states with an encoder sample of stream `lengths` (nearest stamp within `tolerance`,
-    default 5 ms) and the readings there: (state indices (K,), lengths (n, K) in m)."""
+    """The states with an encoder sample of stream `lengths` (nearest stamp within `tolerance`)
+    and the readings there: (state indices (K,), lengths (n, K) in m)."""
     lengths = ctx.stream(spec["lengths"])
-    assoc = nearest(t, lengths.t, spec.get("tolerance", 0.005))
+    assoc = nearest(t, lengths.t, spec["tolerance"])
     if len(assoc.state) < MIN_SAMPLES:
         raise spec.error("lengths", f"only {len(assoc.state)} samples of stream {lengths.name!r} match a state "
                          f"of {spec['robot']!r}; {spec.type} needs at least {MIN_SAMPLES}")
@@ -157,7 +156,7 @@ class Multilateration(Initializer):
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "lengths": {"type": "string"},
                              "columns": {"type": "array", "items": {"type": "string"}},
-                             "tolerance": NONNEG},
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "lengths"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:

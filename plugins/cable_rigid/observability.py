@@ -246,7 +246,7 @@ def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
     robot = spec["robot"]
     cdpr = cable_robot(ctx.robot(robot))
     stream, states = ctx.stream(spec["stream"]), ctx.state_set(robot, spec)
-    assoc = nearest(states.t, stream.t, spec.get("tolerance", 0.005))
+    assoc = nearest(states.t, stream.t, spec["tolerance"])
     have = np.array([ctx.initial.exists(states.key(int(k))) for k in assoc.state], dtype=bool)
     ks, rows = assoc.state[have], assoc.row[have]
     R, t = _poses(ctx, states, ks)

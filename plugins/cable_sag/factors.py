@@ -20,9 +20,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import ROT3, FactorExample, FactorType, gaussian, Spec, vector_type
+from fusionkit.api import ROT3, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, Spec, vector_type
 
-from .model import CORRECTION, FORCE, cable_count, check_sag_robot, length_columns, sag_robot, shipped_robot
+from .model import (CORRECTION, FORCE, REFERENCE, cable_count, check_sag_robot, length_columns, sag_robot,
+                    shipped_robot)
 from .static_solver import inverse_pose
 from .statics import SagRobot, equilibrium
 
@@ -86,9 +87,9 @@ class SagCable(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}, "sigma": SIGMA,
-                             "height_sigma": SIGMA, "reference": {"type": "integer", "minimum": 0},
+                             "height_sigma": SIGMA, "reference": REFERENCE,  # height_sigma: `sigma` if absent
                              "columns": {"type": "array", "items": {"type": "string"}},
-                             "tolerance": {"type": "number", "minimum": 0}},
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -99,9 +100,9 @@ class SagCable(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot_name = spec["robot"]
-        robot = sag_robot(ctx.robot(robot_name), spec.get("reference", 0))
+        robot = sag_robot(ctx.robot(robot_name), spec["reference"])
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot_name, spec.get("tolerance", 0.005), spec)
+        assoc = ctx.associate(stream, robot_name, spec)
         sigma = float(spec["sigma"])
         noise = ctx.noise([sigma] * robot.n + [float(spec.get("height_sigma", sigma))] * robot.n, spec)
         z_all = np.column_stack([stream.column(c) for c in length_columns(spec, robot.n)])
@@ -141,20 +142,20 @@ class ReferenceForce(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
-                             "column": {"type": "string"}, "sigma": SIGMA,
-                             "tolerance": {"type": "number", "minimum": 0}},
+                             "column": {"type": "string", "default": "f"}, "sigma": SIGMA,
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         cable_count(spec, scope)
         scope.require_states(spec, "robot", "pose3")
-        scope.require_columns(spec, "stream", (spec.get("column", "f"),))
+        scope.require_columns(spec, "stream", (spec["column"],))
 
     def build(self, ctx, spec: Spec) -> None:
         robot_name = spec["robot"]
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot_name, spec.get("tolerance", 0.005), spec)
-        f_m = stream.column(spec.get("column", "f"))
+        assoc = ctx.associate(stream, robot_name, spec)
+        f_m = stream.column(spec["column"])
         noise = ctx.noise([spec["sigma"]], spec)
         for k, row in zip(assoc.state, assoc.row):
             key = ctx.state_variable(robot_name, FORCE, VECTOR2, int(k))

@@ -21,7 +21,7 @@ import numpy as np
 
 from fusionkit.api import ROT3, Initializer, Spec
 
-from .model import CORRECTION, FORCE, cable_count, check_sag_robot, sag_robot
+from .model import CORRECTION, FORCE, REFERENCE, cable_count, check_sag_robot, sag_robot
 from .static_solver import StaticsError, initial_reference_force, inverse_pose
 
 
@@ -31,8 +31,8 @@ class SagForces(Initializer):
                "equilibrium with the guessed pulleys (fallback: V = m g / 4, H = V / tan(alpha))")
     robot_fields = ("robot",)
     schema = {"type": "object",
-              "properties": {"robot": {"type": "string"}, "reference": {"type": "integer", "minimum": 0},
-                             "equilibrium": {"type": "boolean"}},
+              "properties": {"robot": {"type": "string"}, "reference": REFERENCE,
+                             "equilibrium": {"type": "boolean", "default": True}},
               "required": ["robot"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -41,7 +41,7 @@ class SagForces(Initializer):
 
     def initialize(self, ctx, spec: Spec) -> None:
         name = spec["robot"]
-        robot = sag_robot(ctx.robot(name), spec.get("reference", 0))
+        robot = sag_robot(ctx.robot(name), spec["reference"])
         forces, corrections = ctx.keys.get(name, FORCE), ctx.keys.get(name, CORRECTION)
         if forces is None:
             raise spec.error("robot", f"no cable.sag factor on robot {name!r}: there are no forces to initialize")
@@ -53,7 +53,7 @@ class SagForces(Initializer):
             X = ctx.initial.atPose3(ctx.pose_key(name, k))
             R, t = X.rotation().matrix(), np.asarray(X.translation())
             f0, dR = initial_reference_force(R, t, pulleys, robot), ROT3.zero()
-            if spec.get("equilibrium", True):
+            if spec["equilibrium"]:
                 try:
                     pose = inverse_pose(t, pulleys, robot, yaw=float(np.arctan2(R[1, 0], R[0, 0])))
                     f0, dR = pose.f_ref, gtsam.Rot3(R.T @ pose.R)

@@ -13,6 +13,7 @@ ROBOT_NAME = "cdpr"  # the robot's key in the configs, truth and robots/cdpr.yam
 GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N)
 CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
 FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
+REFERENCE = {"type": "integer", "minimum": 0, "default": 0}  # the reference cable's index (thesis eq. 5.11)
 
 
 def cable_count(spec: Spec, scope) -> int:
@@ -45,7 +46,7 @@ def check_sag_robot(spec: Spec, scope, n: int) -> None:
                          "cables need it")
     if "mass" not in extra.get("end_effector", {}):
         raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg); the statics need it")
-    if spec.get("reference", 0) >= n:
+    if spec["reference"] >= n:
         raise spec.error("reference", f"cable index {spec['reference']} out of range: the robot has cables 0..{n - 1}")
 
 

@@ -9,13 +9,12 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, FactorExample, FactorType,
-                           gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
+from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
+                           FactorType, gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
 
 from .residuals import co_registration_residual, scaled_between_residual
 
 SIGMA = POSE_SIGMA_SCHEMA
-TOLERANCE = {"type": "number", "minimum": 0}
 
 
 def to_pose2(p: gtsam.Pose3) -> gtsam.Pose2:
@@ -54,8 +53,9 @@ def poses_at(stream, t: np.ndarray, max_gap: float | None = None) -> tuple[np.nd
     return inside, poses_from_array(arr)
 
 
-def odometry_pairs(ctx, spec: Spec, robot: str) -> list[tuple[int, int, gtsam.Pose3, gtsam.Pose3]]:
-    """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times.
+def odometry_pairs(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.Pose3], list[gtsam.Pose3]]:
+    """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times:
+    (every ka, the body poses at those ka, the body poses at their kb).
 
     States outside the stream's time span, or inside a gap longer than `max_gap`, get none, and
     no pair spans a gap (the count is reported, not silently dropped)."""
@@ -70,8 +70,8 @@ def odometry_pairs(ctx, spec: Spec, robot: str) -> list[tuple[int, int, gtsam.Po
     if "sensor" in spec.data:  # sensor poses -> body poses
         mount_inv = mount_of(ctx, spec).inverse()
         poses = [p.compose(mount_inv) for p in poses]
-    js = np.flatnonzero((np.diff(idx) == 1) & (segment[1:] == segment[:-1]))  # consecutive, same stretch
-    return [(ka, ka + 1, poses[j], poses[j + 1]) for j, ka in zip(js.tolist(), idx[js].tolist())]
+    js = np.flatnonzero((np.diff(idx) == 1) & (segment[1:] == segment[:-1])).tolist()  # consecutive, same stretch
+    return idx[js], [poses[j] for j in js], [poses[j + 1] for j in js]
 
 
 class AbsolutePose(FactorType):
@@ -81,7 +81,7 @@ class AbsolutePose(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
-                             "sensor": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE},
+                             "sensor": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -91,7 +91,7 @@ class AbsolutePose(FactorType):
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        assoc = ctx.associate(stream, robot, spec)
         planar = states.family.vartype is POSE2
         noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
         mount_inv = mount_of(ctx, spec).inverse()
@@ -159,14 +159,13 @@ class RelativePose(FactorType):
         states = ctx.state_set(robot)
         planar = states.family.vartype is POSE2
         noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
-        t = states.t.tolist()
-        pairs = odometry_pairs(ctx, spec, robot)
-        keys = ctx.state_keys(robot, [k for ka, kb, _, _ in pairs for k in (ka, kb)])
-        for (ka, kb, pa, pb), a, b in zip(pairs, keys[::2], keys[1::2]):
+        ka, before, after = odometry_pairs(ctx, spec, robot)
+        keys = ctx.state_keys(robot, np.column_stack([ka, ka + 1]).ravel())  # a, b, a, b, ...
+        for a, b, pa, pb, t in zip(keys[::2], keys[1::2], before, after, states.t[ka + 1].tolist()):
             delta = pa.between(pb)
             factor = gtsam.BetweenFactorPose2(a, b, to_pose2(delta), noise) if planar else \
                 gtsam.BetweenFactorPose3(a, b, delta, noise)
-            ctx.add(factor, spec, t[kb])
+            ctx.add(factor, spec, t)
 
     @classmethod
     def example(cls, rng):
@@ -215,10 +214,11 @@ class ScaledRelativePose(FactorType):
         robot = spec["robot"]
         noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
         scale = ctx.parameter(robot, spec["scale"])
-        pairs = odometry_pairs(ctx, spec, robot)
-        keys = ctx.state_keys(robot, [k for ka, kb, _, _ in pairs for k in (ka, kb)])
-        for (ka, kb, pa, pb), a, b in zip(pairs, keys[::2], keys[1::2]):
-            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, ctx.state_time(robot, kb))
+        ka, before, after = odometry_pairs(ctx, spec, robot)
+        keys = ctx.state_keys(robot, np.column_stack([ka, ka + 1]).ravel())  # a, b, a, b, ...
+        times = ctx.state_set(robot).t[ka + 1].tolist()
+        for a, b, pa, pb, t in zip(keys[::2], keys[1::2], before, after, times):
+            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, t)
 
     @classmethod
     def example(cls, rng):
@@ -253,7 +253,7 @@ class CoRegistration(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "other": {"type": "string"},
-                             "stream": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE,
+                             "stream": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE_SCHEMA,
                              "base_sigma": SIGMA},
               "required": ["robot", "other", "stream", "sigma"], "additionalProperties": False}
 
@@ -267,9 +267,8 @@ class CoRegistration(FactorType):
     def build(self, ctx, spec: Spec) -> None:
         a, b = spec["robot"], spec["other"]
         stream = ctx.stream(spec["stream"])
-        tol = spec.get("tolerance", 0.005)
-        assoc_a = ctx.associate(stream, a, tol, spec)
-        assoc_b = ctx.associate(stream, b, tol, spec)
+        assoc_a = ctx.associate(stream, a, spec)
+        assoc_b = ctx.associate(stream, b, spec)
         rows = np.intersect1d(assoc_a.row, assoc_b.row)
         ka = dict(zip(assoc_a.row, assoc_a.state))
         kb = dict(zip(assoc_b.row, assoc_b.state))
@@ -298,7 +297,7 @@ class ParameterRandomWalk(FactorType):
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "parameter": {"type": "string"},
                              "sigma": {"type": "number", "exclusiveMinimum": 0},
-                             "every": {"type": "integer", "minimum": 1}},
+                             "every": {"type": "integer", "minimum": 1, "default": 1}},
               "required": ["robot", "parameter", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -314,7 +313,7 @@ class ParameterRandomWalk(FactorType):
         robot, name = spec["robot"], spec["parameter"]
         param = ctx.robot(robot).parameters[name]
         states = ctx.state_set(robot, spec)
-        ks = np.arange(0, len(states), spec.get("every", 1))
+        ks = np.arange(0, len(states), spec["every"])
         dt = np.diff(states.t[ks])
         zero = param.vartype.zero()
         noises = {}

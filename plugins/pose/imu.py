@@ -3,7 +3,7 @@
 `imu.preintegrated`: the accelerometer (m/s^2, specific force in the body frame) and gyroscope
 (rad/s) samples between consecutive states, each held until the next sample, preintegrated
 (Forster et al.) into one native `ImuFactor` over (pose_i, velocity_i, pose_j, velocity_j, bias).
-Gravity points down the world z axis (`gravity`, default 9.81 m/s^2). The bias is an `imu_bias`
+Gravity points down the world z axis (`gravity`, m/s^2). The bias is an `imu_bias`
 parameter of the robot ([accelerometer (3), gyroscope (3)]); per-state velocities are the
 `velocity` family (world frame, m/s). `imu.velocity` initializes them from the poses.
 """
@@ -49,27 +49,27 @@ class PreintegratedImu(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "bias": NAME,
-                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6},
+                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
+                                         "default": list(IMU_COLUMNS)},
                              "sigma": {"type": "object",
                                        "properties": {"accelerometer": {"type": "number", "exclusiveMinimum": 0},
                                                       "gyroscope": {"type": "number", "exclusiveMinimum": 0}},
                                        "required": ["accelerometer", "gyroscope"], "additionalProperties": False},
-                             "gravity": {"type": "number", "minimum": 0}},
+                             "gravity": {"type": "number", "minimum": 0, "default": 9.81}},
               "required": ["robot", "stream", "bias", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot", "pose3")
         scope.require_parameter(spec, "robot", "bias", "imu_bias")
-        scope.require_columns(spec, "stream", tuple(spec.get("columns", IMU_COLUMNS)))
+        scope.require_columns(spec, "stream", tuple(spec["columns"]))
 
     def build(self, ctx, spec: Spec) -> None:
         """sigma: noise densities (accelerometer m/s^2/sqrt(Hz), gyroscope rad/s/sqrt(Hz))."""
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         stream = ctx.stream(spec["stream"])
-        samples = np.column_stack([stream.column(c) for c in spec.get("columns", IMU_COLUMNS)])
-        params = preintegration_params(spec["sigma"]["accelerometer"], spec["sigma"]["gyroscope"],
-                                       spec.get("gravity", 9.81))
+        samples = np.column_stack([stream.column(c) for c in spec["columns"]])
+        params = preintegration_params(spec["sigma"]["accelerometer"], spec["sigma"]["gyroscope"], spec["gravity"])
         param = ctx.robot(robot).parameters[spec["bias"]]
         for k in range(1, len(states)):
             t0, t1 = float(states.t[k - 1]), float(states.t[k])

@@ -28,12 +28,13 @@ class DiffDriveOdometry(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "wheel_distance": SIGMA,
-                             "right": NAME, "left": NAME, "sigma": POSE_SIGMA_SCHEMA},
+                             "right": {**NAME, "default": "v_right"}, "left": {**NAME, "default": "v_left"},
+                             "sigma": POSE_SIGMA_SCHEMA},
               "required": ["robot", "stream", "wheel_distance", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot", "pose2")
-        scope.require_columns(spec, "stream", (spec.get("right", "v_right"), spec.get("left", "v_left")))
+        scope.require_columns(spec, "stream", (spec["right"], spec["left"]))
 
     def build(self, ctx, spec: Spec) -> None:
         """Each wheel-speed sample holds until the next; sigma (per sqrt(s): m and rad) grows with
@@ -41,8 +42,8 @@ class DiffDriveOdometry(FactorType):
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         stream = ctx.stream(spec["stream"])
-        v, omega = differential_drive_twist(stream.column(spec.get("right", "v_right")),
-                                            stream.column(spec.get("left", "v_left")), float(spec["wheel_distance"]))
+        v, omega = differential_drive_twist(stream.column(spec["right"]), stream.column(spec["left"]),
+                                            float(spec["wheel_distance"]))
         sig = pose_sigmas(spec["sigma"], planar=True)
         for k in range(1, len(states)):
             t0, t1 = float(states.t[k - 1]), float(states.t[k])

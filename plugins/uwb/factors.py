@@ -17,13 +17,15 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POINT2, POINT3, POSE2, POSE_SIGMA_SCHEMA, FactorExample, FactorType, gaussian,
-                           pose_sigmas, range_factor, Spec)
+from fusionkit.api import (POINT2, POINT3, POSE2, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType,
+                           gaussian, pose_sigmas, range_factor, Spec)
 
 from .residuals import scaled_range_residual, tag_to_tag_residual
 
 SIGMA = {"type": "number", "exclusiveMinimum": 0}
 NAME = {"type": "string"}
+ANCHOR_PARAMETER = {**NAME, "default": "anchor"}  # the anchors' point parameter
+RANGE_COLUMN = {**NAME, "default": "range"}       # with `anchor_column`: the ranges' column
 
 
 def lever_arm(desc, sensor: str | None) -> np.ndarray:
@@ -78,7 +80,7 @@ def _range_rows(stream, spec: Spec, n: int):
     with ids, `range_column`) or wide (`columns`, one per anchor; a non-positive value: no range)."""
     if "anchor_column" in spec.data:
         ids = list(spec.get("ids", range(n)))
-        ranges = stream.column(spec.get("range_column", "range"))
+        ranges = stream.column(spec["range_column"])
         out = []
         for row, anchor_id in enumerate(stream.column(spec["anchor_column"])):
             if anchor_id not in ids:
@@ -98,19 +100,19 @@ class UwbRange(FactorType):
     robot_fields = ("robot", "anchors")
     stream_fields = ("stream",)
     schema = {"type": "object",
-              "properties": {"robot": NAME, "stream": NAME, "anchors": NAME, "anchor_parameter": NAME,
+              "properties": {"robot": NAME, "stream": NAME, "anchors": NAME, "anchor_parameter": ANCHOR_PARAMETER,
                              "tag": NAME, "bias": NAME, "scale": NAME, "sigma": SIGMA,
-                             "bias_every": {"type": "integer", "minimum": 1},
-                             "anchor_column": NAME, "range_column": NAME,
+                             "bias_every": {"type": "integer", "minimum": 1, "default": 1},
+                             "anchor_column": NAME, "range_column": RANGE_COLUMN,
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
-                             "tolerance": {"type": "number", "minimum": 0}},
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "anchors", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot")
         anchors = scope.robots[spec["anchors"]]
-        param = spec.get("anchor_parameter", "anchor")
+        param = spec["anchor_parameter"]
         if param not in anchors.parameters:
             raise spec.error("anchors", f"robot {spec['anchors']!r} has no parameter {param!r} (the anchor points)")
         vartype = anchors.parameters[param].vartype
@@ -129,7 +131,7 @@ class UwbRange(FactorType):
             raise spec.error("bias", f"{spec['robot']}/{spec['bias']} has {robot.parameters[spec['bias']].count} "
                              f"value(s); expected one per anchor ({n})")
         if "anchor_column" in spec.data:
-            scope.require_columns(spec, "stream", (spec["anchor_column"], spec.get("range_column", "range")))
+            scope.require_columns(spec, "stream", (spec["anchor_column"], spec["range_column"]))
         else:
             columns = spec.get("columns") or [f"r{i}" for i in range(n)]
             if len(columns) != n:
@@ -138,7 +140,7 @@ class UwbRange(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot, anchors = spec["robot"], spec["anchors"]
-        param = spec.get("anchor_parameter", "anchor")
+        param = spec["anchor_parameter"]
         desc = ctx.robot(robot)
         anchor_type = ctx.robot(anchors).parameters[param].vartype
         n = ctx.robot(anchors).parameters[param].count
@@ -146,14 +148,14 @@ class UwbRange(FactorType):
         planar = states.family.vartype is POSE2
         b = lever_arm(desc, spec.get("tag"))
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot, spec.get("tolerance", 0.005), spec)
+        assoc = ctx.associate(stream, robot, spec)
         state_of = dict(zip(assoc.row, assoc.state))
         noise = ctx.noise([spec["sigma"]], spec)
         native = "scale" not in spec.data and (planar == (anchor_type is POINT2))
         if anchor_type is POINT2 and not planar:
             raise spec.error("anchors", "2-D anchors (point2) need a planar robot (states type pose2)")
         mount = planar_mount(b) if planar else gtsam.Pose3(gtsam.Rot3(), b)
-        every = spec.get("bias_every", 1)  # a time-varying bias held over `every` states (parameter.random_walk every:)
+        every = spec["bias_every"]  # a time-varying bias held over `every` states (parameter.random_walk every:)
         for row, i, z in _range_rows(stream, spec, n):
             if row not in state_of:
                 continue  # counted by ctx.associate
@@ -188,13 +190,13 @@ class UwbTagRange(FactorType):
     stream_fields = ("stream",)
     schema = {"type": "object",
               "properties": {"robot": NAME, "other": NAME, "stream": NAME, "tag": NAME, "other_tag": NAME,
-                             "column": NAME, "sigma": SIGMA, "tolerance": {"type": "number", "minimum": 0}},
+                             "column": RANGE_COLUMN, "sigma": SIGMA, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "other", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot")
         scope.require_states(spec, "other")
-        scope.require_columns(spec, "stream", (spec.get("column", "range"),))
+        scope.require_columns(spec, "stream", (spec["column"],))
 
     def build(self, ctx, spec: Spec) -> None:
         a, b = spec["robot"], spec["other"]
@@ -203,10 +205,9 @@ class UwbTagRange(FactorType):
             raise spec.error("other", f"robots {a!r} and {b!r} must both be planar (pose2) or both pose3")
         b_a, b_b = lever_arm(ctx.robot(a), spec.get("tag")), lever_arm(ctx.robot(b), spec.get("other_tag"))
         stream = ctx.stream(spec["stream"])
-        tol = spec.get("tolerance", 0.005)
-        assoc_a, assoc_b = ctx.associate(stream, a, tol, spec), ctx.associate(stream, b, tol, spec)
+        assoc_a, assoc_b = ctx.associate(stream, a, spec), ctx.associate(stream, b, spec)
         state_b = dict(zip(assoc_b.row, assoc_b.state))
-        z = stream.column(spec.get("column", "range"))
+        z = stream.column(spec["column"])
         noise = ctx.noise([spec["sigma"]], spec)
         for row, ka in zip(assoc_a.row, assoc_a.state):
             if row in state_b:

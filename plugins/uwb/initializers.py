@@ -28,7 +28,7 @@ import numpy as np
 
 from fusionkit.api import POINT2, POSE2, fit_range_origin, Initializer, Spec
 
-from .factors import _range_rows, lever_arm
+from .factors import ANCHOR_PARAMETER, RANGE_COLUMN, _range_rows, lever_arm
 from .survey import anchor_frame, gauge_factors, line_of_sight, place_anchors, range_matrix, rigid_fit
 
 NAME = {"type": "string"}
@@ -101,22 +101,22 @@ class Multilateration(Initializer):
     robot_fields = ("robot", "anchors")
     stream_fields = ("stream",)
     schema = {"type": "object",
-              "properties": {"robot": NAME, "anchors": NAME, "anchor_parameter": NAME, "stream": NAME, "tag": NAME,
-                             "bias": NAME, "anchor_column": NAME, "range_column": NAME,
+              "properties": {"robot": NAME, "anchors": NAME, "anchor_parameter": ANCHOR_PARAMETER, "stream": NAME,
+                             "tag": NAME, "bias": NAME, "anchor_column": NAME, "range_column": RANGE_COLUMN,
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
-                             "unknown": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                             "window": {"type": "number", "minimum": 0},
-                             "heading": {"enum": ["travel", "keep"]}},
+                             "unknown": {"type": "array", "items": {"type": "integer", "minimum": 0}, "default": []},
+                             "window": {"type": "number", "minimum": 0, "default": 0.0},
+                             "heading": {"enum": ["travel", "keep"]}},  # default: travel if planar, else keep
               "required": ["robot", "anchors", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_states(spec, "robot")
-        param = spec.get("anchor_parameter", "anchor")
+        param = spec["anchor_parameter"]
         anchors = scope.robots[spec["anchors"]].parameters.get(param)
         if anchors is None:
             raise spec.error("anchors", f"robot {spec['anchors']!r} has no parameter {param!r} (the anchor points)")
-        unknown = set(spec.get("unknown", []))
+        unknown = set(spec["unknown"])
         if any(i >= anchors.count for i in unknown):
             raise spec.error("unknown", f"anchor index out of range: there are anchors 0..{anchors.count - 1}")
         if len(unknown) == anchors.count and (anchors.vartype is not POINT2
@@ -127,13 +127,13 @@ class Multilateration(Initializer):
 
     def initialize(self, ctx, spec: Spec) -> None:
         robot, anchors_robot = spec["robot"], spec["anchors"]
-        param = spec.get("anchor_parameter", "anchor")
+        param = spec["anchor_parameter"]
         n = ctx.robot(anchors_robot).parameters[param].count
         planar_anchors = ctx.robot(anchors_robot).parameters[param].vartype is POINT2
         keys = [ctx.parameter(anchors_robot, param, i) for i in range(n)]
         anchors = np.array([np.asarray(ctx.initial.atPoint2(k) if planar_anchors else ctx.initial.atPoint3(k))
                             for k in keys])
-        unknown = sorted(set(spec.get("unknown", [])))
+        unknown = sorted(set(spec["unknown"]))
         stream = ctx.stream(spec["stream"])
         rows = _range_rows(stream, spec, n)
         ranges = _Ranges(np.array([stream.t[r] for r, _, _ in rows]), np.array([i for _, i, _ in rows], int),
@@ -158,8 +158,7 @@ class Multilateration(Initializer):
         planar = states.family.vartype is POSE2
         b = lever_arm(ctx.robot(robot), spec.get("tag"))
         height = float(b[2]) if (planar and not planar_anchors) else None
-        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, spec.get("window", 0.0),
-                                    height)
+        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, spec["window"], height)
         if not usable.any():
             raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "
                              "`window` or give more anchors known positions")
@@ -183,11 +182,11 @@ class Multilateration(Initializer):
         """No anchor known (planar): place the anchors from the ranges, keep the placement or its
         mirror image (whichever the robot's factors fit better once solved; when they do not tell,
         anchor 2 on the +y side), then fix the frame: gauge priors, or the description's priors."""
-        robot, param = spec["robot"], spec.get("anchor_parameter", "anchor")
+        robot, param = spec["robot"], spec["anchor_parameter"]
         described = ctx.robot(spec["anchors"]).parameters[param]
         states = ctx.state_set(robot, spec)
         ranges = ranges.subset(line_of_sight(ranges.t, ranges.anchor, ranges.z))
-        table = range_matrix(states.t, ranges.t, ranges.anchor, ranges.z, len(keys), spec.get("window", 0.0))
+        table = range_matrix(states.t, ranges.t, ranges.anchor, ranges.z, len(keys), spec["window"])
         try:
             placed, _ = place_anchors(table[~np.isnan(table).any(axis=1)], 2)
         except ValueError as exc:

@@ -51,7 +51,9 @@ def read_labyrinth(folder: Path, prefix: str = "Indoor_UWB"):
 class LabyrinthSource(Source):
     name = "uwb.labyrinth"
     summary = "The Labyrinth Dataset's text files: UWB ranges (range2), wheel speeds (odom2diff), truth (point2)"
-    schema = {"type": "object", "properties": {"path": NAME, "prefix": NAME, "robot": NAME, "anchors": NAME},
+    schema = {"type": "object", "properties": {"path": NAME, "prefix": {**NAME, "default": "Indoor_UWB"},
+                                               "robot": {**NAME, "default": "robot"},
+                                               "anchors": {**NAME, "default": "anchors"}},
               "required": ["path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
@@ -62,15 +64,15 @@ class LabyrinthSource(Source):
         if not folder.is_dir():
             raise spec.error("path", f"folder not found: {folder}")
         try:
-            ranges, anchors, wheels, truth = read_labyrinth(folder, spec.get("prefix", "Indoor_UWB"))
+            ranges, anchors, wheels, truth = read_labyrinth(folder, spec["prefix"])
         except (OSError, ValueError) as exc:
             raise spec.error("path", str(exc)) from None
         ids = sorted(anchors)
         streams = {"ranges": Stream("ranges", ranges[:, 0], ("anchor", "range"), ranges[:, 1:], str(folder)),
                    "wheels": Stream("wheels", wheels[:, 0], ("v_right", "v_left"), wheels[:, 1:], str(folder))}
         poses = np.column_stack([truth[:, 1:], np.zeros((len(truth), 4)), np.ones(len(truth))])
-        robot = spec.get("robot", "robot")
-        calibration = {spec.get("anchors", "anchors"): {"anchor": {"type": "point2",
+        robot = spec["robot"]
+        calibration = {spec["anchors"]: {"anchor": {"type": "point2",
                                                                    "values": [list(anchors[i]) for i in ids]}}}
         return SourceOutput(streams, {robot: pose_stream(robot, truth[:, 0], poses, str(folder))}, calibration)
 

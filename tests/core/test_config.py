@@ -205,7 +205,12 @@ def test_scaled_vo_loads_with_overrides_applied():
     config = load_config(SCALED_VO, [FAST, "solver.type=isam2", "factors.0.sigma.rotation=0.01",
                                       "factors[1].sigma.translation=2e-2"])
     assert config.name == "scaled_vo_mocap" and config.seed == 0
-    assert config.solver == {"type": "isam2", "method": "lm"}
+    # the solver section with its defaults: the schema's, then iSAM2's factorization and chi-square gate
+    assert config.solver == {"type": "isam2", "method": "lm", "ordering": "colamd", "max_iterations": 100,
+                             "relative_tolerance": 1e-6, "absolute_tolerance": 1e-9, "lag": 2.0, "warmup": 0,
+                             "relinearize_threshold": 0.01, "marginals": True, "a_posteriori_sigmas": False,
+                             "factorization": "qr", "max_cost_ratio": 10.0}
+    assert config.output == {"plots": True, "state_covariances": False}
     assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.0016}
     assert config.factors[1]["sigma"] == {"rotation": 0.01, "translation": 0.02}
     assert config.sources[0]["params"] == {"duration": 5, "rate": 30.0, "scale": 2.5}

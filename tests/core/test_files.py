@@ -7,6 +7,7 @@ import pytest
 
 from fusionkit.data.association import interpolate_poses, nearest, segment_ids
 from fusionkit.data.files import read_csv_header, read_csv_stream, read_tum, write_csv_stream, write_tum
+from fusionkit.data.plain_text import plain_csv, plain_table
 from fusionkit.data.stream import POSE_COLUMNS, Stream, check_samples
 from fusionkit.errors import DataError
 
@@ -199,6 +200,61 @@ def test_tum_round_trip_gives_back_times_and_poses_to_1e_9(tmp_path):
     back = read_tum(tmp_path / "p.tum", "p")
     np.testing.assert_allclose(back.t, [10.0, 10.5], atol=1e-9)
     np.testing.assert_allclose(back.values, arr, atol=1e-9)
+
+
+# ---------------------------------------------------------------- plain files, parsed in C
+
+
+def random_rows(n: int, width: int) -> list[list[str]]:
+    """Rows of numbers as a file holds them: increasing t, then values of many magnitudes and digits."""
+    rng = np.random.default_rng(11)
+    a = rng.normal(size=(n, width)) * 10.0 ** rng.integers(-12, 6, size=(n, width))
+    a[:, 0] = np.cumsum(rng.uniform(0.001, 0.1, n))
+    return [[repr(float(x)) if j % 2 else f"{x:.9f}" for j, x in enumerate(r)] for r in a]
+
+
+def test_plain_tum_and_csv_give_the_numbers_of_the_line_by_line_readers(tmp_path):
+    rows = random_rows(300, 8)
+    for row in rows:
+        row[4:] = ["0", "0", "0", "1"]
+    lines = [" ".join(r) for r in rows]
+    plain = write(tmp_path, "plain.tum", "# t x y z qx qy qz qw\n\n" + "\n".join(lines) + "\n")
+    crlf = write(tmp_path, "crlf.tum", "# t x y z qx qy qz qw\r\n" + "\r\n".join(lines))
+    mixed = write(tmp_path, "mixed.tum", "\n".join(lines[:150] + ["# a comment between rows"] + lines[150:]))
+    assert plain_table(plain.read_bytes(), 8) is not None and plain_table(crlf.read_bytes(), 8) is not None
+    assert plain_table(mixed.read_bytes(), 8) is None  # read line by line
+    expected = np.array([[float(x) for x in r] for r in rows])
+    for path in (plain, crlf, mixed):
+        s = read_tum(path, "p")
+        assert s.t.tobytes() == expected[:, 0].tobytes() and s.values.tobytes() == expected[:, 1:].tobytes()
+
+    rows = random_rows(300, 4)
+    lines = [",".join(r) for r in rows]
+    plain = write(tmp_path, "plain.csv", "# encoders\nt, a ,b,c\n" + "\n".join(lines) + "\n")
+    quoted = write(tmp_path, "quoted.csv", "t,a,b,c\n" + "\n".join(lines[:-1] + ['"' + lines[-1] + '"']) + "\n")
+    assert plain_csv(plain.read_bytes()) is not None and plain_csv(quoted.read_bytes()) is None
+    expected = np.array([[float(x) for x in r] for r in rows])
+    s = read_csv_stream(plain, "e")
+    assert s.columns == ("a", "b", "c")
+    assert s.t.tobytes() == expected[:, 0].tobytes() and s.values.tobytes() == expected[:, 1:].tobytes()
+    with pytest.raises(DataError, match=r"quoted\.csv:301: row has 1 columns; header has 4"):
+        read_csv_stream(quoted, "e")
+
+
+def test_errors_and_notes_of_plain_files_name_the_physical_line(tmp_path):
+    tum = write(tmp_path, "a.tum", "# poses\n#\n0 1 2 3 0 0 0 1\n1 1 2 3 0 0 0 2\n2 1 2 inf 0 0 0 1\n")
+    with pytest.raises(DataError) as err:
+        read_tum(tum, "a")
+    assert str(err.value) == (f"{tum}:5: 1 row(s) contain NaN or infinite values (first at line 5); "
+                              "expected finite numbers")
+    tum = write(tmp_path, "b.tum", "# poses\n#\n0 1 2 3 0 0 0 1\n1 1 2 3 0 0 0 2\n")
+    assert read_tum(tum, "b").notes == [f"{tum}: 1 of 2 quaternions had a norm off 1 by more than 0.001 (largest 1, "
+                                        "first at line 4); renormalized"]
+    csv = write(tmp_path, "c.csv", "\n# wheels\nt,left\n0,1\n1,2\n1,3\n")
+    with pytest.raises(DataError) as err:
+        read_csv_stream(csv, "c")
+    assert str(err.value) == (f"{csv}:6: 1 row(s) have timestamps that do not increase (first at line 6); "
+                              "expected strictly increasing t in seconds")
 
 
 # ---------------------------------------------------------------- sample checks

@@ -219,6 +219,52 @@ def test_redeclaring_a_family_with_another_type_errors(context):
     assert ctx.initial.atConstantBias(bias).vector().tolist() == [0.0] * 6
 
 
+def test_declared_values_reach_the_values_once_with_the_last_value_set(context):
+    ctx = context
+    keys = ctx.state_keys("cam", [0, 1, 1, 3])
+    assert keys == [ctx.state_key("cam", k) for k in (0, 1, 1, 3)]
+    assert [ctx.keys.name_of(k) for k in keys] == ["cam/pose[0]", "cam/pose[1]", "cam/pose[1]", "cam/pose[3]"]
+    assert [ctx.key_time[k] for k in keys] == [ctx.state_time("cam", k) for k in (0, 1, 1, 3)]
+    assert ctx.has_variable(keys[3]) and not ctx.has_variable(ctx.states["cam"].key(2))
+    moved = gtsam.Pose3(gtsam.Rot3.Yaw(0.5), np.array([1.0, 2.0, 3.0]))
+    ctx.set_initial(keys[1], moved)
+    assert ctx.initial_value(keys[1]).equals(moved, 0.0) and ctx.initial_value(keys[0]).equals(gtsam.Pose3(), 0.0)
+    ctx.set_initial(keys[3], moved.inverse())
+    values = ctx.initial  # every declared variable, with the last value each was given
+    assert values.size() == 3
+    assert values.atPose3(keys[3]).equals(moved.inverse(), 0.0) and values.atPose3(keys[1]).equals(moved, 0.0)
+    ctx.set_initial(keys[0], moved)  # already in the Values: updated there
+    assert ctx.initial.atPose3(keys[0]).equals(moved, 0.0)
+    with pytest.raises(RuntimeError):  # gtsam refuses another type for a declared pose, as before
+        ctx.set_initial(ctx.state_key("cam", 4), gtsam.Pose2())
+    with pytest.raises(KeyError, match=r"cam/pose\[2\] is not a variable of the graph"):
+        ctx.set_initial(ctx.states["cam"].key(2), moved)
+
+
+def test_a_declared_array_is_copied_so_later_changes_to_it_do_not_leak_in(context):
+    ctx = context
+    velocity = np.array([1.0, 2.0, 3.0])
+    first = ctx.state_variable("cam", "velocity", vartype_named("velocity3"), 0, velocity)
+    second = ctx.state_variable("cam", "velocity", vartype_named("velocity3"), 1)
+    velocity[:] = -1.0
+    ctx.set_initial(second, velocity)
+    velocity[:] = 7.0
+    assert ctx.initial.atVector(first).tolist() == [1.0, 2.0, 3.0]
+    assert ctx.initial.atVector(second).tolist() == [-1.0, -1.0, -1.0]
+
+
+def test_keys_group_by_family_in_ascending_order():
+    keys = KeyRegistry()
+    pose = keys.family("cam", "pose", POSE3, STATE)
+    scale = keys.family("cam", "vo_scale", SCALAR, STATIC, indexed=False)
+    assert pose.keys([3, 0, 7]) == [pose.key(3), pose.key(0), pose.key(7)]
+    grouped = keys.group([scale.key(0), pose.key(7), pose.key(0), pose.key(3)])
+    assert grouped == [(pose, [pose.key(0), pose.key(3), pose.key(7)]), (scale, [scale.key(0)])]
+    assert keys.group([]) == []
+    with pytest.raises(KeyError):
+        keys.group([99 << INDEX_BITS])
+
+
 # --- planar robots ---------------------------------------------------------------------------------
 
 def planar_dataset(rng, n=300, rate=10.0, odo_sigma=(0.01, 0.01, 0.003), abs_sigma=(0.02, 0.02, 0.01)):

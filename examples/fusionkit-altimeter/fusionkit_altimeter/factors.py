@@ -9,11 +9,9 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import FactorExample, FactorType, Spec
+from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, Spec
 
 from .residuals import height_residual
-
-DEFAULT_TOLERANCE = 0.005  # s, as for pose.absolute
 
 
 def _error(measured: float, this: gtsam.CustomFactor, values: gtsam.Values, H) -> np.ndarray:
@@ -38,7 +36,7 @@ class AltimeterHeight(FactorType):
                              "stream": {"type": "string"},
                              "bias": {"type": "string"},
                              "sigma": {"type": "number", "exclusiveMinimum": 0},
-                             "tolerance": {"type": "number", "minimum": 0}},
+                             "tolerance": TOLERANCE_SCHEMA},   # s; the default every factor type shares
               "required": ["robot", "stream", "bias", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -53,7 +51,7 @@ class AltimeterHeight(FactorType):
         if states.family.vartype.name != "pose3":
             raise spec.error("robot", "an altimeter needs 3-D pose states (states.type: pose3)")
         stream = ctx.stream(spec["stream"])
-        assoc = ctx.associate(stream, robot, spec.get("tolerance", DEFAULT_TOLERANCE), spec)
+        assoc = ctx.associate(stream, robot, spec)   # within the entry's `tolerance`
         noise = ctx.noise([spec["sigma"]], spec)
         heights = stream.column("height")[assoc.row]
         for k, z in zip(assoc.state.tolist(), heights.tolist()):
