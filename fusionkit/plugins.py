@@ -19,12 +19,12 @@ from .robots.registered import KIND as DESCRIPTIONS, is_description_name
 ENTRY_POINT_GROUP = "fusionkit"
 BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not to load
 
+# the core's own components; every robot family, fusionkit's included, is an entry-point plugin
 DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
     "fusionkit.robots.generic",
-    "fusionkit_plugins.pose",
-    "fusionkit_plugins.cable_rigid",
 )
+OWN_DISTRIBUTION = "fusionkit"  # its entry-point plugins load first: a third-party name clash loses
 
 KINDS = {
     "factor_types": ("register_factor_types", FactorType),
@@ -72,14 +72,15 @@ class Registry:
 
 
 def _entry_points() -> list[tuple[str, importlib.metadata.EntryPoint]]:
-    """(distribution name, entry point) of every installed `fusionkit` entry point, once per name."""
+    """(distribution name, entry point) of every installed `fusionkit` entry point, once per name;
+    fusionkit's own plugin families first, then the others by distribution and name."""
     seen, out = set(), []
     for dist in importlib.metadata.distributions():
         for ep in dist.entry_points:
             if ep.group == ENTRY_POINT_GROUP and ep.name not in seen:
                 seen.add(ep.name)
                 out.append((dist.metadata["Name"] or "?", ep))
-    return out
+    return sorted(out, key=lambda d_ep: (d_ep[0] != OWN_DISTRIBUTION, d_ep[0], d_ep[1].name))
 
 
 def _plugin_manager(broken: list[str] | None = None) -> pluggy.PluginManager:

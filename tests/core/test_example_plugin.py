@@ -93,7 +93,7 @@ def test_plugins_json_lists_the_example_factor_and_simulator_with_summaries(inst
     assert [i["name"] for i in provided["factor_types"]] == ["altimeter.height"]
     assert [i["name"] for i in provided["simulators"]] == ["altimeter.demo"]
     assert all(i["summary"] for kind in provided.values() for i in kind)
-    assert "pose.absolute" in [i["name"] for i in listing["fusionkit_plugins.pose"]["factor_types"]]
+    assert "pose.absolute" in [i["name"] for i in listing["pose"]["factor_types"]]
 
 
 CONTRACT_SCRIPT = textwrap.dedent("""
@@ -226,7 +226,7 @@ def test_misspelled_hook_is_named_and_the_plugin_left_out(tmp_path):
     assert proc.returncode == 0, proc.stderr
     (line,) = proc.stderr.splitlines()
     assert line.startswith(WARNING.split("{reason}")[0]) and "unknown hook 'register_factor_type'" in line
-    assert "probe" not in json.loads(proc.stdout) and "fusionkit_plugins.pose" in json.loads(proc.stdout)
+    assert "probe" not in json.loads(proc.stdout) and "pose" in json.loads(proc.stdout)
 
 
 def test_plugin_that_fails_to_import_does_not_stop_configs_that_do_not_use_it(tmp_path):

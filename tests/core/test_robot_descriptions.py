@@ -81,7 +81,7 @@ def test_a_plugins_description_is_loaded_by_name_and_listed(use_plugins, tmp_pat
 
 @pytest.mark.parametrize("files, reason", [
     (lambda tmp: {"arascam": tmp / "rig.yaml"}, "robot description 'arascam' is already provided by "
-                                                "fusionkit_plugins.cable_rigid"),
+                                                "cable_rigid"),
     (lambda tmp: {"rig.yaml": tmp / "rig.yaml"}, "returned the name 'rig.yaml'; expected a name without a path "
                                                  "separator or .yaml/.yml suffix"),
     (lambda tmp: {"rig": tmp / "missing.yaml"}, "for 'rig'; expected an existing file"),
@@ -92,7 +92,7 @@ def test_a_malformed_or_clashing_registration_leaves_the_plugin_out(use_plugins,
     reg = use_plugins(DescriptionPlugin(files(tmp_path)))
     assert len(reg.broken) == 1 and reg.broken[0].startswith("plugin test_plugin_0: ") and reason in reg.broken[0]
     assert "rig" not in reg.names("robot_descriptions")
-    assert reg.provider[("robot_descriptions", "arascam")] == "fusionkit_plugins.cable_rigid"
+    assert reg.provider[("robot_descriptions", "arascam")] == "cable_rigid"
 
 
 def test_description_data_is_a_fresh_dict_and_an_unknown_name_lists_the_registered_ones():

@@ -164,7 +164,7 @@ def test_plugins_json_shows_each_default_in_the_components_schema(capsys):
 def test_plugins_name_prints_the_keys_required_defaulted_and_optional(capsys):
     assert main(["plugins", "pose.absolute"]) == 0
     assert capsys.readouterr().out.splitlines() == [
-        "factor type pose.absolute (fusionkit_plugins.pose): absolute pose measurements of a robot (motion "
+        "factor type pose.absolute (pose): absolute pose measurements of a robot (motion "
         "capture, GNSS+heading): native prior",
         "  robot      required  a string",
         "  stream     required  a string",
