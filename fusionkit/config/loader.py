@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ..components import CheckScope, Spec
+from ..plugins import registry
 from ..graph.variables import vartype_named
 from ..robots.calibration_file import apply_calibration, calibration_entries
 from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
@@ -182,7 +183,6 @@ def specs_of(doc: Document, section: str) -> list[Spec]:
 
 def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
     """Load, override and validate a run config; raises ConfigError/DataError on the first problem."""
-    from ..plugins import registry
 
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
