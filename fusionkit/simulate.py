@@ -49,6 +49,10 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
         for robot, traj in (data.truth_trajectories or {}).items():
             write_tum(tmp / "truth" / f"{robot}.tum", traj)
             truth.setdefault("trajectories", {})[robot] = f"truth/{robot}.tum"
+        for robot, families in (data.truth_states or {}).items():  # other state families: CSV, t + components
+            for family, stream in families.items():
+                write_csv_stream(tmp / "truth" / f"{robot}.{family}.csv", stream)
+                truth.setdefault("states", {}).setdefault(robot, {})[family] = f"truth/{robot}.{family}.csv"
         if data.truth_calibration:
             (tmp / "truth" / "calibration.yaml").write_text(yaml.safe_dump(
                 {"fusionkit_calibration": 1, "robots": data.truth_calibration}, sort_keys=False))

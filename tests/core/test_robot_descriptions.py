@@ -99,7 +99,8 @@ def test_description_data_is_a_fresh_dict_and_an_unknown_name_lists_the_register
     first = robot_description_data("arascam")
     first["parameters"]["pulley"]["values"][0][0] = 99.0
     assert robot_description_data("arascam")["parameters"]["pulley"]["values"][0][0] == -2.0
-    with pytest.raises(ConfigError, match=r"^unknown robot description 'nope'; installed: arascam, cdpr_large, "):
+    with pytest.raises(ConfigError, match=r"^unknown robot description 'nope'; installed: arascam, arash_asist, "
+                                          r"arash_asist_mm, cdpr_large, "):
         robot_description_data("nope")
 
 

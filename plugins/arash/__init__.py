@@ -1,0 +1,36 @@
+"""`arash` plugin: ARASH:ASiST's parallelogram remote-centre-of-motion arm (docs/models/arash.md) --
+the `rcm_arm` robot model with the forward kinematics of thesis eq. 3.7 and of the authors' code,
+joint-encoder and tracked-tool factors, two arms co-registered through a base-to-base transform, and
+the leader/follower simulator."""
+
+from fusionkit.api import hookimpl, robot_description_files
+
+from .factors import FACTOR_TYPES
+from .initializers import INITIALIZERS
+from .model import RcmArmModel
+from .simulator import SIMULATORS
+
+
+@hookimpl
+def register_factor_types():
+    return FACTOR_TYPES
+
+
+@hookimpl
+def register_robot_models():
+    return [RcmArmModel]
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
+
+
+@hookimpl
+def register_simulators():
+    return SIMULATORS
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

@@ -1,0 +1,180 @@
+"""Forward kinematics of a serial arm from its URDF (Pinocchio), with kinematic parameter errors, and
+its Jacobians on SE(3) (docs/models/serial_arm.md).
+
+Conventions: a pose is a 4x4 homogeneous matrix a_T_b; a twist is in GTSAM's tangent order
+[rotation (rad), translation (m)] and perturbs a pose on the right, T' = T Exp(xi) (Pinocchio's
+LOCAL frame; Pinocchio orders its twists [linear, angular]).
+
+The chain's model: the URDF reduced to the listed joints (every other joint locked at its neutral
+value), so its configuration is one value per listed joint (rad, or m for a prismatic joint):
+
+    base_T_tool(q) = base_T_universe * prod_j [ parent_T_joint_j Exp(delta_j) * M_j(q_j + dq_j) ] * joint_T_tool
+
+with delta_j the placement error of joint j (a twist in joint j's frame before it moves) and dq_j
+its offset; both zero give the URDF's own forward kinematics.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import gtsam
+import numpy as np
+import pinocchio as pin
+
+PIN_TO_GTSAM = [3, 4, 5, 0, 1, 2]  # rows of a Pinocchio twist [v, w] in GTSAM's order [w, v]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def inverse(T: np.ndarray) -> np.ndarray:
+    R, p = T[:3, :3], T[:3, 3]
+    out = np.eye(4)
+    out[:3, :3] = R.T
+    out[:3, 3] = -R.T @ p
+    return out
+
+
+def adjoint(T: np.ndarray) -> np.ndarray:
+    """Ad(T) in GTSAM's order: T Exp(xi) T^-1 = Exp(Ad(T) xi)."""
+    R, p = T[:3, :3], T[:3, 3]
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[3:, 3:] = R
+    A[3:, :3] = skew(p) @ R
+    return A
+
+
+def exp_twist(xi: np.ndarray) -> pin.SE3:
+    """Exp of a GTSAM-order twist as a Pinocchio SE3."""
+    return pin.exp6(pin.Motion(np.asarray(xi[3:], float), np.asarray(xi[:3], float)))
+
+
+@contextmanager
+def _captured_stderr():
+    """The C++ URDF parser prints its errors to the process's stderr (fd 2): keep them for the one-line error."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lambda: (tmp.seek(0), tmp.read().decode(errors="replace"))[1]
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+class ChainError(ValueError):
+    """A frame or joint the URDF lacks or that does not fit a serial arm; `key`: the description key at fault."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
+@dataclass
+class Flange:
+    """base_T_tool and, when asked for, its Jacobians (local twist of the tool frame, GTSAM order)."""
+
+    T: np.ndarray                              # 4x4 base_T_tool
+    joints: np.ndarray | None = None           # 6 x n: d twist / d q (the offsets have the same columns)
+    placements: list[np.ndarray] | None = None  # per joint, 6 x 6: d twist / d delta_j (delta a plain vector)
+
+
+class SerialChain:
+    """A URDF arm between `base_frame` and `tool_frame`, moved by `joints` (in that order)."""
+
+    def __init__(self, model: pin.Model, base_frame: str, tool_frame: str, joints: list[str]):
+        for key, frame in (("base_frame", base_frame), ("tool_frame", tool_frame)):
+            if not model.existFrame(frame):
+                raise ChainError(key, f"the URDF has no frame {frame!r}")
+        missing = [j for j in joints if not model.existJointName(j)]
+        if missing:
+            raise ChainError("joints", f"the URDF has no joint {missing[0]!r}; its joints: "
+                             f"{', '.join(list(model.names)[1:])}")
+        lock = [jid for jid in range(1, model.njoints) if model.names[jid] not in joints]
+        self.model = pin.buildReducedModel(model, lock, pin.neutral(model)) if lock else model
+        self.data = self.model.createData()
+        self.joint_names = list(joints)
+        self.jids = [self.model.getJointId(j) for j in joints]
+        wrong = [(j, self.model.joints[jid].nv) for j, jid in zip(joints, self.jids) if self.model.joints[jid].nv != 1]
+        if wrong:
+            raise ChainError("joints", f"joint {wrong[0][0]!r} has {wrong[0][1]} degrees of freedom; a serial arm's "
+                             "joints have one each")
+        self.idx_v = [self.model.joints[jid].idx_v for jid in self.jids]
+        self.tool_id = self.model.getFrameId(tool_frame)
+        base_id = self.model.getFrameId(base_frame)
+        tool_support = set(self.model.supports[self.model.frames[self.tool_id].parentJoint])
+        unmoved = [j for j, jid in zip(joints, self.jids) if jid not in tool_support]
+        if unmoved:
+            raise ChainError("joints", f"joint {unmoved[0]!r} does not move tool_frame {tool_frame!r}")
+        if self.model.frames[base_id].parentJoint != 0:
+            raise ChainError("base_frame", f"base_frame {base_frame!r} moves with the joints; it must come before "
+                             "the first one")
+        self.nominal = [self.model.jointPlacements[jid].copy() for jid in self.jids]
+        self._perturbed: set[int] = set()
+        self._plain = self.model.nq == self.model.nv  # no continuous (cos, sin) joints: q is the angles
+        pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
+        self.universe_T_base = pin.updateFramePlacement(self.model, self.data, base_id).homogeneous
+        self.base_T_universe = inverse(self.universe_T_base)
+        self.prismatic = [self.model.joints[jid].shortname().startswith("JointModelP") for jid in self.jids]
+        self.lower = np.array([self.model.lowerPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
+        self.upper = np.array([self.model.upperPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
+
+    @classmethod
+    def from_urdf(cls, path: Path, base_frame: str, tool_frame: str, joints: list[str]) -> "SerialChain":
+        """ChainError("urdf", ...) when Pinocchio cannot read the file (with what its parser printed)."""
+        with _captured_stderr() as printed:
+            try:
+                model = pin.buildModelFromUrdf(str(path))
+            except (ValueError, RuntimeError) as exc:
+                said = " ".join(printed().split())
+                raise ChainError("urdf", f"not a URDF Pinocchio can read: {str(exc).strip()}"
+                                 + (f" ({said})" if said else "")) from None
+        return cls(model, base_frame, tool_frame, joints)
+
+    @property
+    def n(self) -> int:
+        return len(self.jids)
+
+    def _configuration(self, q: np.ndarray) -> np.ndarray:
+        v = np.zeros(self.model.nv)
+        v[self.idx_v] = q
+        return v if self._plain else pin.integrate(self.model, pin.neutral(self.model), v)
+
+    def _set_placements(self, placements: dict[int, np.ndarray]) -> None:
+        for j in self._perturbed - placements.keys():
+            self.model.jointPlacements[self.jids[j]] = self.nominal[j]
+        for j, delta in placements.items():
+            self.model.jointPlacements[self.jids[j]] = self.nominal[j] * exp_twist(delta)
+        self._perturbed = set(placements)
+
+    def flange(self, q: np.ndarray, placements: dict[int, np.ndarray] | None = None,
+               jacobians: bool = False) -> Flange:
+        """base_T_tool at joint values q (offsets already added), with placement errors {joint index:
+        delta (6, GTSAM order)}; with `jacobians`, d twist/d q and d twist/d delta_j for every joint."""
+        self._set_placements(placements or {})
+        config = self._configuration(np.asarray(q, float))
+        model, data = self.model, self.data
+        if not jacobians:
+            pin.forwardKinematics(model, data, config)
+            return Flange(self.base_T_universe @ pin.updateFramePlacement(model, data, self.tool_id).homogeneous)
+        pin.computeJointJacobians(model, data, config)
+        universe_T_tool = pin.updateFramePlacement(model, data, self.tool_id).homogeneous
+        J = pin.getFrameJacobian(model, data, self.tool_id, pin.LOCAL)[PIN_TO_GTSAM][:, self.idx_v]
+        tool_T_universe = inverse(universe_T_tool)
+        blocks = []
+        for j, jid in enumerate(self.jids):  # joint j's frame before it moves: universe_T_parent * parent_T_joint
+            before = (data.oMi[model.parents[jid]] * model.jointPlacements[jid]).homogeneous
+            block = adjoint(tool_T_universe @ before)  # d twist / d (right perturbation of the placement)
+            if j in self._perturbed:  # Exp(delta + d) = Exp(delta) Exp(Jr(delta) d)
+                block = block @ gtsam.Pose3.ExpmapDerivative(np.asarray(placements[j], float))
+            blocks.append(block)
+        return Flange(self.base_T_universe @ universe_T_tool, J, blocks)

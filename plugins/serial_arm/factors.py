@@ -1,0 +1,302 @@
+"""Serial-arm factor types (docs/models/serial_arm.md#factors): the marker's pose (6-D tracker), its
+position (laser tracker), its motion between two configurations, and joint encoders. Joint vectors
+are the robot's states (`states: {stream: ..., type: vectorN, family: joints}`); static samples use
+the sample index as their time."""
+
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+
+import gtsam
+import numpy as np
+
+from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
+                           nearest, pose_sigmas, poses_from_array)
+
+from .kinematics import Layout, Parameters, marker_pose, read_parameters
+from .model import arm_of, chain_from
+from .residuals import relative_tool_pose_residual, tool_pose_residual, tool_position_residual
+from .urdf import PREFIX, urdf_path
+
+NAME = {"type": "string"}
+SIGMA = {"type": "number", "exclusiveMinimum": 0}
+
+
+def entry_layout(arm, spec: Spec, tool_type: str, base: bool = True) -> tuple[Layout, list[tuple[str, int | None]]]:
+    """The layout of an entry's kinematic variables and each one's (parameter, element): the entry's
+    `base`/`tool` (else the description's kinematics), every offset and placement group."""
+    base_name = spec.get("base", arm.base) if base else None
+    tool_name = spec.get("tool", arm.tool)
+    variables: list[tuple[str, int | None]] = [(base_name, None)] if base_name else []
+    variables += [(tool_name, None)] if tool_name else []
+    offsets = tuple(j for g in arm.offsets for j in g.joints)
+    variables += [(g.parameter, i) for g in arm.offsets for i in range(len(g.joints))]
+    placements = tuple((j, g.axes) for g in arm.placements for j in g.joints)
+    variables += [(g.parameter, i) for g in arm.placements for i in range(len(g.joints))]
+    return Layout(bool(base_name), tool_type if tool_name else "", offsets, placements), variables
+
+
+def parameter_keys(ctx, robot: str, variables: list[tuple[str, int | None]], k: int) -> list[int]:
+    return [ctx.parameter(robot, name, index, k) for name, index in variables]
+
+
+def check_arm_entry(spec: Spec, scope, tools: tuple[str, ...] = ("pose3",), base: bool = True):
+    """A serial_arm robot with joint-vector states; the entry's base and tool name pose parameters."""
+    desc = scope.require_model(spec, "robot", "serial_arm")
+    scope.require_states(spec, "robot", f"vector{len(desc.extra['joints'])}")
+    kin = desc.extra.get("kinematics") or {}
+    for key, types in (("base", ("pose3",)), ("tool", tools)):
+        if key == "base" and not base:
+            continue
+        if key in spec.data:
+            scope.require_parameter(spec, "robot", key)
+            vartype = desc.parameters[spec[key]].vartype.name
+            if vartype not in types or desc.parameters[spec[key]].indexed:
+                raise spec.error(key, f"parameter {spec[key]!r} is {vartype}; a {key} is one {' or '.join(types)}")
+        elif key in kin and desc.parameters[kin[key]].vartype.name not in types:
+            raise spec.error("robot", f"the description's kinematics.{key} {kin[key]!r} is a "
+                             f"{desc.parameters[kin[key]].vartype.name}; {spec.type} needs a {' or '.join(types)} "
+                             f"(name one with `{key}:`)")
+    return desc
+
+
+def tool_type(desc, spec: Spec) -> str:
+    name = spec.get("tool", (desc.extra.get("kinematics") or {}).get("tool"))
+    return desc.parameters[name].vartype.name if name else ""
+
+
+def _pose_error(chain, layout: Layout, measured: gtsam.Pose3, this, v: gtsam.Values, H):
+    keys = this.keys()
+    return tool_pose_residual(chain, layout, v.atVector(keys[0]), read_parameters(layout, v, keys[1:]), measured, H)
+
+
+def _position_error(chain, layout: Layout, measured: np.ndarray, this, v: gtsam.Values, H):
+    keys = this.keys()
+    return tool_position_residual(chain, layout, v.atVector(keys[0]), read_parameters(layout, v, keys[1:]), measured,
+                                  H)
+
+
+def _relative_error(chain, layout: Layout, measured: gtsam.Pose3, this, v: gtsam.Values, H):
+    keys = this.keys()
+    return relative_tool_pose_residual(chain, layout, v.atVector(keys[0]), v.atVector(keys[1]),
+                                       read_parameters(layout, v, keys[2:]), measured, H)
+
+
+class ArmMeasurement(FactorType):
+    """Shared by the marker measurements: one factor per sample at its nearest state."""
+
+    kind = ""             # "pose", "position" or "relative" (identifiability.kinematic_regressor)
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+
+    def layout(self, ctx, spec: Spec):
+        desc = ctx.robot(spec["robot"])
+        return entry_layout(arm_of(desc), spec, tool_type(desc, spec), self.kind != "relative")
+
+    def sigmas(self, spec: Spec) -> np.ndarray:
+        return np.asarray(pose_sigmas(spec["sigma"], False), float)
+
+    def samples(self, ctx, spec: Spec, note: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(states, stream rows) of the samples this entry uses; relative: (pairs of states, pairs of rows).
+        `note`: count the samples left out in the report (once, when building)."""
+        stream = ctx.stream(spec["stream"])
+        a = ctx.associate(stream, spec["robot"], spec) if note else \
+            nearest(ctx.state_set(spec["robot"], spec).t, stream.t, spec["tolerance"])
+        return a.state, a.row
+
+    def diagnose(self, ctx, spec: Spec) -> None:
+        """Identifiability of the robot's kinematic parameters (run once, by its first marker entry)."""
+        from .diagnosis import identify
+        identify(ctx, spec)
+
+
+class ToolPose(ArmMeasurement):
+    name = "arm.tool_pose"
+    summary = ("6-D tracker: the marker's pose in the measurement frame, B * FK(q + dq; placements) * M "
+               "(serial_arm, Pinocchio FK, analytic Jacobians)")
+    kind = "pose"
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": POSE_SIGMA_SCHEMA, "base": NAME, "tool": NAME,
+                             "tolerance": TOLERANCE_SCHEMA},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_arm_entry(spec, scope)
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        chain = arm_of(ctx.robot(robot)).chain
+        layout, variables = self.layout(ctx, spec)
+        noise = ctx.noise(self.sigmas(spec), spec)
+        ks, rows = self.samples(ctx, spec)
+        measured = poses_from_array(ctx.stream(spec["stream"]).pose_array()[rows])
+        for k, z in zip(ks.tolist(), measured):
+            keys = [ctx.state_key(robot, k)] + parameter_keys(ctx, robot, variables, k)
+            ctx.add(gtsam.CustomFactor(noise, keys, partial(_pose_error, chain, layout, z)), spec,
+                    ctx.state_time(robot, k))
+
+    @classmethod
+    def example(cls, rng):
+        chain, layout, p = example_arm(rng, "pose3")
+        q = rng.uniform(-np.pi, np.pi, chain.n)
+        values = example_values(layout, p, q)
+        z = gtsam.Pose3(marker_pose(chain, layout, q, p)[0])
+        factor = gtsam.CustomFactor(gaussian([1e-3] * 6), list(range(values.size())),
+                                    partial(_pose_error, chain, layout, z))
+        return FactorExample(factor, values)
+
+
+class ToolPosition(ArmMeasurement):
+    name = "arm.tool_position"
+    summary = "laser tracker: the marker's position (x, y, z columns, m) in the measurement frame (serial_arm)"
+    kind = "position"
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "base": NAME, "tool": NAME,
+                             "tolerance": TOLERANCE_SCHEMA},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_arm_entry(spec, scope, ("pose3", "point3"))
+        scope.require_columns(spec, "stream", ("x", "y", "z"))
+
+    def sigmas(self, spec: Spec) -> np.ndarray:
+        return np.full(3, float(spec["sigma"]))
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        chain = arm_of(ctx.robot(robot)).chain
+        layout, variables = self.layout(ctx, spec)
+        noise = ctx.noise(self.sigmas(spec), spec)
+        ks, rows = self.samples(ctx, spec)
+        stream = ctx.stream(spec["stream"])
+        xyz = np.column_stack([stream.column(c) for c in "xyz"])[rows]
+        for k, z in zip(ks.tolist(), xyz):
+            keys = [ctx.state_key(robot, k)] + parameter_keys(ctx, robot, variables, k)
+            ctx.add(gtsam.CustomFactor(noise, keys, partial(_position_error, chain, layout, z)), spec,
+                    ctx.state_time(robot, k))
+
+    @classmethod
+    def example(cls, rng):
+        chain, layout, p = example_arm(rng, "point3" if rng.uniform() < 0.5 else "pose3")
+        q = rng.uniform(-np.pi, np.pi, chain.n)
+        values = example_values(layout, p, q)
+        z = marker_pose(chain, layout, q, p)[0][:3, 3]
+        factor = gtsam.CustomFactor(gaussian([1e-4] * 3), list(range(values.size())),
+                                    partial(_position_error, chain, layout, z))
+        return FactorExample(factor, values)
+
+
+class RelativeToolPose(ArmMeasurement):
+    name = "arm.relative_tool_pose"
+    summary = ("marker motion between consecutive samples of a pose stream in any fixed frame: "
+               "T(q_a)^-1 T(q_b); the base cancels (serial_arm)")
+    kind = "relative"
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": POSE_SIGMA_SCHEMA, "tool": NAME,
+                             "tolerance": TOLERANCE_SCHEMA},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_arm_entry(spec, scope, base=False)
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+
+    def samples(self, ctx, spec: Spec, note: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        ks, rows = super().samples(ctx, spec, note)
+        nxt = np.flatnonzero(np.diff(rows) == 1)  # consecutive samples, both at a state
+        return np.column_stack([ks[nxt], ks[nxt + 1]]), np.column_stack([rows[nxt], rows[nxt + 1]])
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        chain = arm_of(ctx.robot(robot)).chain
+        layout, variables = self.layout(ctx, spec)
+        noise = ctx.noise(self.sigmas(spec), spec)
+        pairs, rows = self.samples(ctx, spec)
+        poses = ctx.stream(spec["stream"]).pose_array()
+        for (ka, kb), (ra, rb) in zip(pairs.tolist(), rows.tolist()):
+            a, b = poses_from_array(poses[[ra, rb]])
+            keys = [ctx.state_key(robot, ka), ctx.state_key(robot, kb)] + parameter_keys(ctx, robot, variables, kb)
+            ctx.add(gtsam.CustomFactor(noise, keys, partial(_relative_error, chain, layout, a.between(b))), spec,
+                    ctx.state_time(robot, kb))
+
+    @classmethod
+    def example(cls, rng):
+        chain, layout, p = example_arm(rng, "pose3", base=False)
+        qa, qb = rng.uniform(-np.pi, np.pi, (2, chain.n))
+        values = example_values(layout, p, qa, qb)
+        z = gtsam.Pose3(marker_pose(chain, layout, qa, p)[0]).between(gtsam.Pose3(marker_pose(chain, layout, qb, p)[0]))
+        factor = gtsam.CustomFactor(gaussian([1e-3] * 6), list(range(values.size())),
+                                    partial(_relative_error, chain, layout, z))
+        return FactorExample(factor, values)
+
+
+class JointEncoders(FactorType):
+    name = "arm.joint_encoders"
+    summary = "joint encoder readings -> the joint-vector state (native vector prior, a sigma per joint), and its start"
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME,
+                             "sigma": {"oneOf": [SIGMA, {"type": "array", "items": SIGMA, "minItems": 1}]},
+                             "columns": {"type": "array", "items": NAME, "minItems": 1},
+                             "tolerance": TOLERANCE_SCHEMA},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        """`columns` (default: the description's joint names) and a list `sigma` have one per joint."""
+        desc = scope.require_model(spec, "robot", "serial_arm")
+        n = len(desc.extra["joints"])
+        scope.require_states(spec, "robot", f"vector{n}")
+        for key in ("columns", "sigma"):
+            if isinstance(spec.get(key), list) and len(spec[key]) != n:
+                raise spec.error(key, f"{len(spec[key])} given; the arm has {n} joints "
+                                 f"({', '.join(desc.extra['joints'])})")
+        scope.require_columns(spec, "stream", tuple(spec.get("columns") or desc.extra["joints"]))
+
+    def build(self, ctx, spec: Spec) -> None:
+        robot = spec["robot"]
+        joints = ctx.robot(robot).extra["joints"]
+        stream = ctx.stream(spec["stream"])
+        readings = np.column_stack([stream.column(c) for c in spec.get("columns") or joints])
+        sigma = spec["sigma"]
+        noise = ctx.noise(sigma if isinstance(sigma, list) else [sigma] * len(joints), spec)
+        a = ctx.associate(stream, robot, spec)
+        for k, z in zip(a.state.tolist(), readings[a.row]):
+            key = ctx.state_key(robot, k)
+            ctx.add(gtsam.PriorFactorVector(key, z, noise), spec, ctx.state_time(robot, k))
+            ctx.set_initial(key, z)
+
+    @classmethod
+    def example(cls, rng):
+        q = rng.uniform(-np.pi, np.pi, 6)
+        values = gtsam.Values()
+        values.insert(0, q)
+        return FactorExample(gtsam.PriorFactorVector(0, q, gaussian(rng.uniform(1e-5, 1e-3, 6))), values)
+
+
+def example_arm(rng: np.random.Generator, tool: str, base: bool = True) -> tuple:
+    """A UR10 (example-robot-data) with a random base, tool, two joint offsets and placement errors on
+    four joints (one joint in two placement entries): (chain, layout, parameters)."""
+    chain = chain_from(urdf_path(PREFIX + "ur10", Path(".")), "base_link", "tool0", UR_JOINTS)
+    layout = Layout(base, tool, (1, 3), ((0, (0, 1, 2, 3, 4, 5)), (2, (3, 5)), (2, (1,)), (5, (2, 4))))
+    pose = lambda: gtsam.Pose3.Expmap(rng.normal(scale=0.5, size=6)).matrix()  # noqa: E731
+    tool_value = pose() if tool == "pose3" else np.block([[np.eye(3), rng.normal(size=(3, 1))], [0, 0, 0, 1]])
+    return chain, layout, Parameters(pose() if base else None, tool_value, rng.normal(scale=0.1, size=2),
+                                     [rng.normal(scale=0.1, size=len(axes)) for _, axes in layout.placements])
+
+
+def example_values(layout: Layout, p: Parameters, *joint_vectors: np.ndarray) -> gtsam.Values:
+    """Keys 0.. the joint vectors, then the layout's variables in order."""
+    values = gtsam.Values()
+    items = list(joint_vectors) + ([gtsam.Pose3(p.base)] if layout.base else [])
+    items += [gtsam.Pose3(p.tool) if layout.tool == "pose3" else p.tool[:3, 3].copy()] if layout.tool else []
+    items += [float(v) for v in p.offsets] + [np.asarray(v, float) for v in p.placements]
+    for key, item in enumerate(items):
+        values.insert(key, item)
+    return values
+
+
+UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+             "wrist_3_joint")
+FACTOR_TYPES = [ToolPose, ToolPosition, RelativeToolPose, JointEncoders]

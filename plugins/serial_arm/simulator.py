@@ -1,0 +1,225 @@
+"""`arm.sim`: a serial arm from its URDF measured by a tracker (docs/reference/factors.md#simulators).
+
+Random static configurations (t = sample index) or a smooth joint trajectory; the true kinematic
+parameters are the description's nominal ones plus Gaussian errors, drawn only for the parameters
+the identifiability analysis keeps (an error on a held one would be absorbed by the others and could
+not be compared with its truth); tracker (6-D pose or 3-D position) and encoder noise; optionally the
+offset of one joint drifting smoothly during the run (a time-varying parameter).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gtsam
+import numpy as np
+
+from fusionkit.api import (POSE3, POSE_COLUMNS, POSE_NOISE_SCHEMA, ConfigError, Simulator, SourceOutput, Stream, noisy,
+                           pose_stream, robot_description_data)
+
+from .factors import entry_layout
+from .identifiability import analyze, kinematic_regressor
+from .kinematics import marker_pose, parameters_of
+from .model import Arm, chain_from, kinematic_groups
+from .urdf import urdf_path
+
+ROBOTS = Path(__file__).parent / "robots"
+POSITIVE = {"type": "number", "minimum": 0}
+DRIFT_PARAMETER = "drifting_offset"
+
+
+def _sigma_row(raw, index: int, dim: int) -> np.ndarray:
+    """A description's prior sigma of element `index` per tangent axis (inf: no prior)."""
+    if raw is None:
+        return np.full(dim, np.inf)
+    a = np.asarray(raw, float)
+    if a.ndim == 2:
+        return a[index]
+    return np.broadcast_to(a if a.shape == (dim,) else a.reshape(-1)[:1], (dim,)).astype(float)
+
+
+class ArmSimulator(Simulator):
+    name = "arm.sim"
+    summary = ("serial arm from its URDF (ur10_tracker, panda_tracker): random configurations or a joint trajectory, "
+               "kinematic errors, tracker and encoder noise, optionally a drifting joint offset")
+    schema = {"type": "object",
+              "properties": {"description": {"type": "string"},
+                             "configurations": {"type": "integer", "minimum": 2},
+                             "motion": {"enum": ["static", "trajectory"]},
+                             "duration": {"type": "number", "exclusiveMinimum": 0},
+                             "rate": {"type": "number", "exclusiveMinimum": 0},
+                             "measurement": {"enum": ["pose", "position"]},
+                             "tracker_sigma": POSE_NOISE_SCHEMA, "encoder_sigma": POSITIVE,
+                             "errors": {"type": "object",
+                                        "properties": {"base": POSE_NOISE_SCHEMA, "tool": POSE_NOISE_SCHEMA,
+                                                       "joint_offsets": POSITIVE, "placements": POSE_NOISE_SCHEMA},
+                                        "additionalProperties": False},
+                             "drift": {"type": "object",
+                                       "properties": {"joint": {"type": "integer", "minimum": 0}, "change": POSITIVE,
+                                                      "random_walk": {"type": "number", "exclusiveMinimum": 0}},
+                                       "additionalProperties": False}},
+              "additionalProperties": False}
+    defaults = {"description": "ur10_tracker", "configurations": 60, "motion": "static", "duration": 60.0,
+                "rate": 10.0, "measurement": "pose", "tracker_sigma": {"rotation": 1e-4, "translation": 1e-4},
+                "encoder_sigma": 1e-5,
+                "errors": {"base": {"rotation": 0.02, "translation": 0.02},
+                           "tool": {"rotation": 0.02, "translation": 0.005}, "joint_offsets": 0.005,
+                           "placements": {"rotation": 0.001, "translation": 0.0005}},
+                "drift": {"joint": 2, "change": 0.0, "random_walk": 0.001}}
+
+    def stream_columns(self, params: dict):
+        joints = tuple(_shipped_arm(params)["joints"])
+        return {"joints": joints, "tracker": POSE_COLUMNS if params["measurement"] == "pose" else ("x", "y", "z")}
+
+    def robots(self, params: dict) -> dict[str, dict]:
+        """The description; with a drift, the drifting joint's offset becomes its own time-varying parameter."""
+        data = _shipped_arm(params)
+        if params["drift"]["change"] > 0:
+            kin, pars = data["kinematics"], data["parameters"]
+            joint = data["joints"][params["drift"]["joint"]]
+            for group in kin.get("joint_offsets", []):
+                if joint in group["joints"]:
+                    i = group["joints"].index(joint)
+                    group["joints"].pop(i)
+                    pars[group["parameter"]]["values"].pop(i)
+            kin["joint_offsets"] = [g for g in kin.get("joint_offsets", []) if g["joints"]] + \
+                [{"parameter": DRIFT_PARAMETER, "joints": [joint]}]
+            pars[DRIFT_PARAMETER] = {"type": "scalar", "values": [0.0], "sigma": 0.01, "time_varying": True,
+                                     "unit": "rad"}
+        return {"arm": data}
+
+    def config(self, params: dict) -> dict:
+        n = len(_shipped_arm(params)["joints"])
+        tracker = "arm.tool_pose" if params["measurement"] == "pose" else "arm.tool_position"
+        sigma = {k: max(v, 1e-6) for k, v in params["tracker_sigma"].items()}
+        factors = [{"type": "arm.joint_encoders", "robot": "arm", "stream": "joints",
+                    "sigma": max(params["encoder_sigma"], 1e-7)},
+                   {"type": tracker, "robot": "arm", "stream": "tracker",
+                    "sigma": sigma if params["measurement"] == "pose" else sigma["translation"]}]
+        if params["drift"]["change"] > 0:
+            factors.append({"type": "parameter.random_walk", "robot": "arm", "parameter": DRIFT_PARAMETER,
+                            "sigma": params["drift"]["random_walk"]})
+        return {"robots": {"arm": {"description": "robots/arm.yaml",
+                                   "states": {"stream": "joints", "type": f"vector{n}", "family": "joints"}}},
+                "factors": factors, "solver": {"type": "batch", "method": "lm"}}
+
+    def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        data = self.robots(params)["arm"]
+        arm = Arm(chain_from(urdf_path(data["urdf"], ROBOTS), data["base_frame"], data["tool_frame"], data["joints"]),
+                  *kinematic_groups(data))
+        chain, pars = arm.chain, data["parameters"]
+        tool_type = pars[arm.tool]["type"] if arm.tool else ""
+        layout, variables = entry_layout(arm, {}, tool_type)
+        t, q = self._motion(params, chain, rng)
+        nominal = [_value(pars[name], index) for name, index in variables]
+        truth = self._truth(params, arm, layout, variables, pars, nominal, q, rng)
+        drift = self._drift(params, variables, t)
+        poses = []
+        for k in range(len(t)):
+            values = list(truth)
+            for i, change in drift.items():
+                values[i] = truth[i] + change[k]
+            poses.append(gtsam.Pose3(marker_pose(chain, layout, q[k], parameters_of(layout, values))[0]))
+        noise = params["tracker_sigma"]
+        if params["measurement"] == "pose":
+            tracker = pose_stream("tracker", t, noisy(poses, noise, rng), "simulated:tracker")
+        else:
+            xyz = np.array([p.translation() for p in poses]) + rng.normal(0.0, noise["translation"], (len(t), 3))
+            tracker = Stream("tracker", t, ("x", "y", "z"), xyz, "simulated:tracker")
+        readings = q + rng.normal(0.0, params["encoder_sigma"], q.shape)
+        names = tuple(f"c{i}" for i in range(chain.n))
+        calibration = {}
+        for (name, index), value in zip(variables, truth):  # the drifting offset: its value at the first sample
+            entry = calibration.setdefault(name, {"type": pars[name]["type"]})
+            listed = POSE3.to_list(value) if isinstance(value, gtsam.Pose3) else \
+                float(value) if np.ndim(value) == 0 else [float(x) for x in value]
+            if index is None:
+                entry["value"] = listed
+            else:
+                entry.setdefault("values", []).append(listed)
+        return SourceOutput(
+            {"joints": Stream("joints", t, tuple(data["joints"]), readings, "simulated:encoders"), "tracker": tracker},
+            truth_calibration={"arm": calibration},
+            truth_states={"arm": {"joints": Stream("arm.joints", t, names, q, "simulated:joints")}})
+
+    @staticmethod
+    def _motion(params: dict, chain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Sample times and true joint values: uniform within the limits (at most +-pi), or sinusoids
+        of 0.02-0.08 Hz around the middle of the range."""
+        lo, hi = np.maximum(chain.lower, -np.pi), np.minimum(chain.upper, np.pi)
+        if params["motion"] == "static":
+            n = params["configurations"]
+            return np.arange(n, dtype=float), rng.uniform(lo, hi, (n, chain.n))
+        t = np.arange(0.0, params["duration"], 1.0 / params["rate"])
+        mid, amp = (lo + hi) / 2, np.minimum((hi - lo) / 2 * 0.8, 1.2)
+        freq, phase = rng.uniform(0.02, 0.08, chain.n), rng.uniform(0, 2 * np.pi, chain.n)
+        return t, mid + amp * np.sin(2 * np.pi * freq * t[:, None] + phase)
+
+    @staticmethod
+    def _truth(params: dict, arm: Arm, layout, variables, pars: dict, nominal: list, q: np.ndarray, rng) -> list:
+        """Nominal values plus errors, drawn for the identifiable tangent axes only."""
+        sigma = _error_sigmas(params["errors"], layout)
+        scale = np.concatenate([_sigma_row(pars[name].get("sigma"), index or 0, width)
+                                for (name, index), width in zip(variables, layout.widths)])
+        kind = params["measurement"]
+        A = kinematic_regressor(arm.chain, layout, parameters_of(layout, nominal), q[:: max(1, len(q) // 200)],
+                                kind, np.ones(6 if kind == "pose" else 3))
+        xi = rng.normal(0.0, sigma)
+        xi[analyze(A, np.where(np.isfinite(scale), scale, 1.0)).held] = 0.0
+        out, c = [], 0
+        for value, width in zip(nominal, layout.widths):
+            d = xi[c:c + width]
+            c += width
+            if isinstance(value, gtsam.Pose3):
+                out.append(value.compose(gtsam.Pose3.Expmap(d)))
+            else:
+                out.append(value + (d if np.ndim(value) else float(d[0])))
+        return out
+
+    @staticmethod
+    def _drift(params: dict, variables: list, t: np.ndarray) -> dict[int, np.ndarray]:
+        """{variable: change over time} of the drifting offset."""
+        if params["drift"]["change"] <= 0:
+            return {}
+        return {variables.index((DRIFT_PARAMETER, 0)): drift_truth(params, t, 0.0)}
+
+
+def drift_truth(params: dict, t: np.ndarray, start: float) -> np.ndarray:
+    """The simulated drifting offset at times t (rad): from `start` at the first sample, a smooth S-curve
+    that has changed by `drift.change` at the last."""
+    span = max(t[-1] - t[0], 1e-9)
+    return start + params["drift"]["change"] * (1 - np.cos(np.pi * (t - t[0]) / span)) / 2
+
+
+def _error_sigmas(err: dict, layout) -> np.ndarray:
+    """The simulated error's sigma on every tangent axis of the layout (`errors` of the parameters)."""
+    out = []
+    for role, width in (("base", 6 * layout.base), ("tool", {"pose3": 6, "point3": 3}.get(layout.tool, 0))):
+        out += ([err[role]["rotation"]] * 3 if width == 6 else []) + [err[role]["translation"]] * 3 * (width > 0)
+    out += [err["joint_offsets"]] * len(layout.offsets)
+    out += [err["placements"]["rotation" if a < 3 else "translation"] for _, axes in layout.placements for a in axes]
+    return np.array(out, float)
+
+
+def _shipped_arm(params: dict) -> dict:
+    """The registered serial_arm description `params` names (a fresh dict); ConfigError otherwise."""
+    data = robot_description_data(params["description"])
+    where = f"arm.sim: description {params['description']!r}"
+    if data.get("model") != "serial_arm":
+        raise ConfigError(f"{where} is a {data.get('model', 'generic')!r} robot; arm.sim needs a serial_arm one")
+    n = len(data["joints"])
+    if params["drift"]["change"] > 0 and params["drift"]["joint"] >= n:
+        raise ConfigError(f"arm.sim: drift.joint {params['drift']['joint']} is not a joint of "
+                          f"{params['description']!r} (0 .. {n - 1})")
+    return data
+
+
+def _value(raw: dict, index: int | None):
+    """A parameter's typed nominal value from a description dict."""
+    value = raw["values"][index] if index is not None else raw["value"]
+    if raw["type"] == "pose3":
+        return POSE3.from_list(value)
+    return float(value) if raw["type"] == "scalar" else np.asarray(value, float)
+
+
+SIMULATORS = [ArmSimulator]
