@@ -14,6 +14,8 @@ from ..pipeline import RunResult
 TRUTH_STYLE = {"color": "black", "linestyle": "--", "linewidth": 1.0}  # every estimate has a colour of its own
 
 
+# fixed margins instead of tight_layout, which draws every figure twice (a third of the time of `fusionkit
+# run` on small problems)
 def _pyplot():
     import matplotlib
     matplotlib.use("Agg")
@@ -37,7 +39,7 @@ def plot_trajectories(result: RunResult, file: Path) -> None:
     height.set(xlabel="t [s]", ylabel="z [m]", title="height")
     top.legend(fontsize=8)
     height.legend(fontsize=8)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.1, top=0.93, wspace=0.25)
     fig.savefig(file, dpi=110)
     plt.close(fig)
 
@@ -58,7 +60,8 @@ def plot_errors(result: RunResult, robot: str, file: Path) -> None:
     axes[0].set_title(f"{robot}: position error vs truth ({len(m.t)} of {len(result.trajectories[robot])} states "
                       "matched; no alignment)")
     axes[-1].set_xlabel("t [s]")
-    fig.tight_layout()
+    height = fig.get_size_inches()[1]
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.55 / height, top=1 - 0.4 / height, hspace=0.12)
     fig.savefig(file, dpi=110)
     plt.close(fig)
 
@@ -75,7 +78,10 @@ def plot_residuals(result: RunResult, file: Path) -> None:
     ax.set_yticks(range(1, len(labels) + 1), labels, fontsize=8)
     ax.axvline(1.0, color="gray", linestyle=":")
     ax.set(xlabel="whitened residual RMS per factor (1 = as expected from the sigmas)", title="residuals")
-    fig.tight_layout()
+    height = fig.get_size_inches()[1]
+    longest = max((len(k) for k in labels), default=10)  # 8-pt labels: about 0.065 inch per character
+    fig.subplots_adjust(left=min(0.6, 0.03 + 0.0065 * longest), right=0.98, bottom=0.6 / height,
+                        top=1 - 0.35 / height)
     fig.savefig(file, dpi=110)
     plt.close(fig)
 

@@ -279,9 +279,12 @@ def test_config_run_puts_pulleys_within_3_cm_and_the_scale_within_0_5_percent(wo
 
 
 def test_unresolved_cable_is_named_in_the_verdict(workspace):
+    """The verdict comes from the initializer, before any solve (as `fusionkit validate` shows it)."""
+    from fusionkit.pipeline import build_problem, read_sources
     D = make_dataset(seed=5, axes="x", mixed=False)
-    result = fusionkit.run(write_config(workspace, D))
-    diag = result.problem.diagnostics["initializers[0]:cable.monte_carlo"]
+    config = fusionkit.load_config(write_config(workspace, D))
+    problem = build_problem(config, read_sources(config)[0])
+    diag = problem.diagnostics["initializers[0]:cable.monte_carlo"]
     assert not any(c["resolved"] for c in diag["cables"])
     unresolved = [line for line in diag["verdict"] if "NOT resolved" in line]
     assert len(unresolved) == 4 and "move the end-effector along more axes" in unresolved[0]
