@@ -11,6 +11,7 @@ from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
 from .factorization import linear_settings, qr_marginals
 from .incremental import solve_fixed_lag, solve_isam2
+from .marginals import tree_marginals
 from .result import SolveResult
 
 FIXED_LAG_ALLOWED_RISE = 9.0  # relative: a fixed-lag cost ten times the initial one is divergence
@@ -56,7 +57,6 @@ def marginal_covariances(graph: gtsam.NonlinearFactorGraph, result: SolveResult,
     """Marginal covariance (tangent space at the estimate) of each key."""
     if not keys:
         return {}
-    marginal = result.marginal
-    if marginal is None:
-        marginal = gtsam.Marginals(graph, result.values).marginalCovariance
-    return {k: np.asarray(marginal(k)) for k in keys}
+    if result.marginal is None:
+        return tree_marginals(graph, result.values, keys)
+    return {k: np.asarray(result.marginal(k)) for k in keys}

@@ -27,29 +27,9 @@ import gtsam
 import numpy as np
 import pinocchio as pin
 
+from .lie import adjoint, inverse
+
 PIN_TO_GTSAM = [3, 4, 5, 0, 1, 2]  # rows of a Pinocchio twist [v, w] in GTSAM's order [w, v]
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def inverse(T: np.ndarray) -> np.ndarray:
-    R, p = T[:3, :3], T[:3, 3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ p
-    return out
-
-
-def adjoint(T: np.ndarray) -> np.ndarray:
-    """Ad(T) in GTSAM's order: T Exp(xi) T^-1 = Exp(Ad(T) xi)."""
-    R, p = T[:3, :3], T[:3, 3]
-    A = np.zeros((6, 6))
-    A[:3, :3] = R
-    A[3:, 3:] = R
-    A[3:, :3] = skew(p) @ R
-    return A
 
 
 def exp_twist(xi: np.ndarray) -> pin.SE3:

@@ -11,12 +11,15 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
-                           nearest, pose_sigmas, poses_from_array)
+from scipy.spatial.transform import Rotation
 
-from .kinematics import Layout, Parameters, marker_pose, read_parameters
+from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
+                           nearest, pose_sigmas)
+
+from .evaluator import EntryEvaluator
+from .kinematics import Layout, Parameters, marker_pose
+from .lie import inverse
 from .model import arm_of, chain_from
-from .residuals import relative_tool_pose_residual, tool_pose_residual, tool_position_residual
 from .urdf import PREFIX, urdf_path
 
 NAME = {"type": "string"}
@@ -66,27 +69,25 @@ def tool_type(desc, spec: Spec) -> str:
     return desc.parameters[name].vartype.name if name else ""
 
 
-def _pose_error(chain, layout: Layout, measured: gtsam.Pose3, this, v: gtsam.Values, H):
-    keys = this.keys()
-    return tool_pose_residual(chain, layout, v.atVector(keys[0]), read_parameters(layout, v, keys[1:]), measured, H)
+def pose_matrices(rows: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) poses from (N, 7) rows x y z qx qy qz qw (quaternions normalized)."""
+    rows = np.asarray(rows, float).reshape(-1, 7)
+    T = np.zeros((len(rows), 4, 4))
+    T[:, :3, :3] = Rotation.from_quat(rows[:, 3:]).as_matrix()
+    T[:, :3, 3] = rows[:, :3]
+    T[:, 3, 3] = 1.0
+    return T
 
 
-def _position_error(chain, layout: Layout, measured: np.ndarray, this, v: gtsam.Values, H):
-    keys = this.keys()
-    return tool_position_residual(chain, layout, v.atVector(keys[0]), read_parameters(layout, v, keys[1:]), measured,
-                                  H)
-
-
-def _relative_error(chain, layout: Layout, measured: gtsam.Pose3, this, v: gtsam.Values, H):
-    keys = this.keys()
-    return relative_tool_pose_residual(chain, layout, v.atVector(keys[0]), v.atVector(keys[1]),
-                                       read_parameters(layout, v, keys[2:]), measured, H)
+def marker_factor(noise, keys: list[int], evaluator: EntryEvaluator, i: int) -> gtsam.CustomFactor:
+    """Factor i of an entry's evaluator, on its variables `keys`."""
+    return gtsam.CustomFactor(noise, keys, partial(evaluator.error, i))
 
 
 class ArmMeasurement(FactorType):
     """Shared by the marker measurements: one factor per sample at its nearest state."""
 
-    kind = ""             # "pose", "position" or "relative" (identifiability.kinematic_regressor)
+    kind = ""             # "pose", "position" or "relative" (EntryEvaluator, identifiability.kinematic_regressor)
     robot_fields = ("robot",)
     stream_fields = ("stream",)
 
@@ -104,6 +105,24 @@ class ArmMeasurement(FactorType):
         a = ctx.associate(stream, spec["robot"], spec) if note else \
             nearest(ctx.state_set(spec["robot"], spec).t, stream.t, spec["tolerance"])
         return a.state, a.row
+
+    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+        """What EntryEvaluator compares with, for the stream rows of the samples."""
+        raise NotImplementedError
+
+    def build(self, ctx, spec: Spec) -> None:
+        """One factor per sample, all evaluated together by one EntryEvaluator."""
+        robot = spec["robot"]
+        chain = arm_of(ctx.robot(robot)).chain
+        layout, variables = self.layout(ctx, spec)
+        noise = ctx.noise(self.sigmas(spec), spec)
+        ks, rows = self.samples(ctx, spec)
+        states = ks.reshape(len(ks), -1)  # relative: pairs; the parameters are those of the later state
+        keys = [[ctx.state_key(robot, k) for k in pair] + parameter_keys(ctx, robot, variables, pair[-1])
+                for pair in states.tolist()]
+        evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows), keys)
+        for i, (pair, key_list) in enumerate(zip(states.tolist(), keys)):
+            ctx.add(marker_factor(noise, key_list, evaluator, i), spec, ctx.state_time(robot, pair[-1]))
 
     def diagnose(self, ctx, spec: Spec) -> None:
         """Identifiability of the robot's kinematic parameters (run once, by its first marker entry)."""
@@ -125,27 +144,17 @@ class ToolPose(ArmMeasurement):
         check_arm_entry(spec, scope)
         scope.require_columns(spec, "stream", POSE_COLUMNS)
 
-    def build(self, ctx, spec: Spec) -> None:
-        robot = spec["robot"]
-        chain = arm_of(ctx.robot(robot)).chain
-        layout, variables = self.layout(ctx, spec)
-        noise = ctx.noise(self.sigmas(spec), spec)
-        ks, rows = self.samples(ctx, spec)
-        measured = poses_from_array(ctx.stream(spec["stream"]).pose_array()[rows])
-        for k, z in zip(ks.tolist(), measured):
-            keys = [ctx.state_key(robot, k)] + parameter_keys(ctx, robot, variables, k)
-            ctx.add(gtsam.CustomFactor(noise, keys, partial(_pose_error, chain, layout, z)), spec,
-                    ctx.state_time(robot, k))
+    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+        return inverse(pose_matrices(stream.pose_array()[rows]))
 
     @classmethod
     def example(cls, rng):
         chain, layout, p = example_arm(rng, "pose3")
         q = rng.uniform(-np.pi, np.pi, chain.n)
         values = example_values(layout, p, q)
-        z = gtsam.Pose3(marker_pose(chain, layout, q, p)[0])
-        factor = gtsam.CustomFactor(gaussian([1e-3] * 6), list(range(values.size())),
-                                    partial(_pose_error, chain, layout, z))
-        return FactorExample(factor, values)
+        z = marker_pose(chain, layout, q, p)[0]  # Pinocchio's forward kinematics: the batched code must agree
+        evaluator = EntryEvaluator(chain, layout, cls.kind, inverse(z[None]), [list(range(values.size()))])
+        return FactorExample(marker_factor(gaussian([1e-3] * 6), list(range(values.size())), evaluator, 0), values)
 
 
 class ToolPosition(ArmMeasurement):
@@ -164,18 +173,8 @@ class ToolPosition(ArmMeasurement):
     def sigmas(self, spec: Spec) -> np.ndarray:
         return np.full(3, float(spec["sigma"]))
 
-    def build(self, ctx, spec: Spec) -> None:
-        robot = spec["robot"]
-        chain = arm_of(ctx.robot(robot)).chain
-        layout, variables = self.layout(ctx, spec)
-        noise = ctx.noise(self.sigmas(spec), spec)
-        ks, rows = self.samples(ctx, spec)
-        stream = ctx.stream(spec["stream"])
-        xyz = np.column_stack([stream.column(c) for c in "xyz"])[rows]
-        for k, z in zip(ks.tolist(), xyz):
-            keys = [ctx.state_key(robot, k)] + parameter_keys(ctx, robot, variables, k)
-            ctx.add(gtsam.CustomFactor(noise, keys, partial(_position_error, chain, layout, z)), spec,
-                    ctx.state_time(robot, k))
+    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+        return np.column_stack([stream.column(c) for c in "xyz"])[rows]
 
     @classmethod
     def example(cls, rng):
@@ -183,9 +182,8 @@ class ToolPosition(ArmMeasurement):
         q = rng.uniform(-np.pi, np.pi, chain.n)
         values = example_values(layout, p, q)
         z = marker_pose(chain, layout, q, p)[0][:3, 3]
-        factor = gtsam.CustomFactor(gaussian([1e-4] * 3), list(range(values.size())),
-                                    partial(_position_error, chain, layout, z))
-        return FactorExample(factor, values)
+        evaluator = EntryEvaluator(chain, layout, cls.kind, z[None], [list(range(values.size()))])
+        return FactorExample(marker_factor(gaussian([1e-4] * 3), list(range(values.size())), evaluator, 0), values)
 
 
 class RelativeToolPose(ArmMeasurement):
@@ -207,28 +205,19 @@ class RelativeToolPose(ArmMeasurement):
         nxt = np.flatnonzero(np.diff(rows) == 1)  # consecutive samples, both at a state
         return np.column_stack([ks[nxt], ks[nxt + 1]]), np.column_stack([rows[nxt], rows[nxt + 1]])
 
-    def build(self, ctx, spec: Spec) -> None:
-        robot = spec["robot"]
-        chain = arm_of(ctx.robot(robot)).chain
-        layout, variables = self.layout(ctx, spec)
-        noise = ctx.noise(self.sigmas(spec), spec)
-        pairs, rows = self.samples(ctx, spec)
-        poses = ctx.stream(spec["stream"]).pose_array()
-        for (ka, kb), (ra, rb) in zip(pairs.tolist(), rows.tolist()):
-            a, b = poses_from_array(poses[[ra, rb]])
-            keys = [ctx.state_key(robot, ka), ctx.state_key(robot, kb)] + parameter_keys(ctx, robot, variables, kb)
-            ctx.add(gtsam.CustomFactor(noise, keys, partial(_relative_error, chain, layout, a.between(b))), spec,
-                    ctx.state_time(robot, kb))
+    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+        """z^-1 = P_b^-1 P_a for the measured motion z = P_a^-1 P_b of each pair."""
+        poses = stream.pose_array()
+        return inverse(pose_matrices(poses[rows[:, 1]])) @ pose_matrices(poses[rows[:, 0]])
 
     @classmethod
     def example(cls, rng):
         chain, layout, p = example_arm(rng, "pose3", base=False)
         qa, qb = rng.uniform(-np.pi, np.pi, (2, chain.n))
         values = example_values(layout, p, qa, qb)
-        z = gtsam.Pose3(marker_pose(chain, layout, qa, p)[0]).between(gtsam.Pose3(marker_pose(chain, layout, qb, p)[0]))
-        factor = gtsam.CustomFactor(gaussian([1e-3] * 6), list(range(values.size())),
-                                    partial(_relative_error, chain, layout, z))
-        return FactorExample(factor, values)
+        z = inverse(marker_pose(chain, layout, qa, p)[0]) @ marker_pose(chain, layout, qb, p)[0]
+        evaluator = EntryEvaluator(chain, layout, cls.kind, inverse(z[None]), [list(range(values.size()))])
+        return FactorExample(marker_factor(gaussian([1e-3] * 6), list(range(values.size())), evaluator, 0), values)
 
 
 class JointEncoders(FactorType):

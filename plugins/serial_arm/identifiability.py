@@ -20,8 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from .chain import SerialChain, adjoint, inverse
-from .kinematics import Layout, Parameters, marker_pose
+from . import batch
+from .chain import SerialChain
+from .kinematics import Layout, Parameters
+from .lie import adjoint, inverse
 
 TOLERANCE = 1e-8   # relative pivot below which a column is a combination of the others
 SUPPORT = 1e-6     # relative weight below which a parameter is not part of a combination
@@ -32,19 +34,20 @@ def kinematic_regressor(chain: SerialChain, layout: Layout, p: Parameters, confi
     """Stacked whitened Jacobians (rows: measurements x their dimension; columns: the layout's tangent
     axes in key order) at parameters `p`. kind: "pose" (6 rows, sigma [rotation x3, translation x3]),
     "position" (3 rows) or "relative" (configurations (N, 2, n): pairs a, b; 6 rows)."""
-    rows = []
-    for q in np.asarray(configurations, float):
-        if kind == "relative":
-            Ta, ba = marker_pose(chain, layout, q[0], p, True)
-            Tb, bb = marker_pose(chain, layout, q[1], p, True)
-            back = adjoint(inverse(inverse(Ta) @ Tb))
-            rows.append(np.hstack([b - back @ a for a, b in zip(ba[1:], bb[1:])]) if len(ba) > 1 else np.zeros((6, 0)))
-            continue
-        T, blocks = marker_pose(chain, layout, q, p, True)
-        J = np.hstack(blocks[1:]) if len(blocks) > 1 else np.zeros((6, 0))
-        rows.append(T[:3, :3] @ J[3:] if kind == "position" else J)
-    A = np.vstack(rows)
-    return A / np.tile(np.asarray(sigma, float), len(rows))[:, None]
+    q = np.asarray(configurations, float)
+    N = len(q)
+    if kind == "relative":
+        a = batch.marker_poses(chain, layout, q[:, 0], p, True)
+        b = batch.marker_poses(chain, layout, q[:, 1], p, True)
+        back = adjoint(inverse(inverse(a.T) @ b.T))
+        J = np.concatenate([y - back @ x for x, y in zip(a.blocks[1:], b.blocks[1:])] or [np.zeros((N, 6, 0))], axis=2)
+    else:
+        poses = batch.marker_poses(chain, layout, q, p, True)
+        J = np.concatenate(poses.blocks[1:] or [np.zeros((N, 6, 0))], axis=2)
+        if kind == "position":
+            J = poses.T[:, :3, :3] @ J[:, 3:]
+    A = J.reshape(-1, J.shape[2])
+    return A / np.tile(np.asarray(sigma, float), N)[:, None]
 
 
 @dataclass

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import gtsam
 import numpy as np
 
-from .chain import SerialChain, adjoint, inverse
+from .chain import SerialChain
+from .lie import adjoint, inverse
 
 
 @dataclass(frozen=True)
@@ -46,25 +46,6 @@ class Parameters:
     placements: list[np.ndarray] = field(default_factory=list)
 
 
-def read_parameters(layout: Layout, values: gtsam.Values, keys: list[int]) -> Parameters:
-    """The layout's variables from gtsam.Values (keys in layout order)."""
-    i = 0
-    p = Parameters()
-    if layout.base:
-        p.base = values.atPose3(keys[0]).matrix()
-        i = 1
-    if layout.tool == "pose3":
-        p.tool = values.atPose3(keys[i]).matrix()
-    elif layout.tool:
-        p.tool = np.eye(4)
-        p.tool[:3, 3] = values.atPoint3(keys[i])
-    i += bool(layout.tool)
-    n = len(layout.offsets)
-    p.offsets = np.array([values.atDouble(k) for k in keys[i:i + n]])
-    p.placements = [values.atVector(k) for k in keys[i + n:]]
-    return p
-
-
 def parameters_of(layout: Layout, values: list) -> Parameters:
     """The layout's Parameters from its variables' values (Pose3, point, float, vector), in key order."""
     p, i = Parameters(), 0
@@ -82,14 +63,17 @@ def parameters_of(layout: Layout, values: list) -> Parameters:
 
 
 def joint_deltas(layout: Layout, p: Parameters, n: int) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    """(joint offsets of all n joints, {joint: placement twist}) from the layout's values."""
+    """(joint offsets of all n joints, {joint: placement twist}) from the layout's values; each value is
+    shared by all samples (a scalar, a (w,) vector) or given per sample (a leading axis N)."""
     dq = np.zeros(n)
     for j, v in zip(layout.offsets, p.offsets):
-        dq[j] += v
+        dq = dq + np.eye(n)[j] * np.asarray(v, float)[..., None]
     deltas: dict[int, np.ndarray] = {}
     for (j, axes), v in zip(layout.placements, p.placements):
-        d = deltas.setdefault(j, np.zeros(6))
-        d[list(axes)] += v
+        v = np.asarray(v, float)
+        full = np.zeros(v.shape[:-1] + (6,))
+        full[..., list(axes)] = v
+        deltas[j] = deltas[j] + full if j in deltas else full
     return dq, deltas
 
 

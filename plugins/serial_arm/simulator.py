@@ -19,7 +19,8 @@ from fusionkit.api import (POSE3, POSE_COLUMNS, POSE_NOISE_SCHEMA, ConfigError, 
 
 from .factors import entry_layout
 from .identifiability import analyze, kinematic_regressor
-from .kinematics import marker_pose, parameters_of
+from .batch import marker_poses
+from .kinematics import parameters_of
 from .model import Arm, chain_from, kinematic_groups
 from .urdf import urdf_path
 
@@ -113,13 +114,12 @@ class ArmSimulator(Simulator):
         t, q = self._motion(params, chain, rng)
         nominal = [_value(pars[name], index) for name, index in variables]
         truth = self._truth(params, arm, layout, variables, pars, nominal, q, rng)
-        drift = self._drift(params, variables, t)
-        poses = []
-        for k in range(len(t)):
-            values = list(truth)
-            for i, change in drift.items():
-                values[i] = truth[i] + change[k]
-            poses.append(gtsam.Pose3(marker_pose(chain, layout, q[k], parameters_of(layout, values))[0]))
+        p = parameters_of(layout, truth)
+        offsets = list(p.offsets)
+        for i, change in self._drift(params, variables, t).items():  # the drifting offset: one value per sample
+            offsets[i - layout.base - bool(layout.tool)] = truth[i] + change
+        p.offsets = offsets
+        poses = [gtsam.Pose3(T) for T in marker_poses(chain, layout, q, p).T]
         noise = params["tracker_sigma"]
         if params["measurement"] == "pose":
             tracker = pose_stream("tracker", t, noisy(poses, noise, rng), "simulated:tracker")

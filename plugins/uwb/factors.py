@@ -17,8 +17,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POINT2, POINT3, POSE2, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType,
-                           gaussian, pose_sigmas, range_factor, Spec)
+from fusionkit.api import POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec
 
 from .residuals import scaled_range_residual, tag_to_tag_residual
 

@@ -5,7 +5,6 @@ factor sigmas were divided by 5."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np

@@ -4,7 +4,6 @@ the summary; calibration.yaml still loads as a robot-description override, and m
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import gtsam

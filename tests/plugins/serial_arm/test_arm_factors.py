@@ -11,8 +11,8 @@ import pytest
 from fusionkit.testing import FactorExample, check_factor_contract, check_factor_example
 from fusionkit_plugins.serial_arm.diagnosis import hold_factor
 from fusionkit_plugins.serial_arm.factors import FACTOR_TYPES, example_arm
+from fusionkit_plugins.serial_arm.batch import marker_poses, pose_residuals, position_residuals
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters, marker_pose
-from fusionkit_plugins.serial_arm.residuals import tool_pose_residual, tool_position_residual
 from fusionkit.plugins import registry
 
 
@@ -55,7 +55,30 @@ def test_tool_residuals_are_the_marker_pose_and_position_errors():
     flange = chain.flange(q).T
     expected = flange[:3, 3] + flange[:3, 2] * 0.1 + [1.0, 0.0, 0.0]
     np.testing.assert_allclose(marker_pose(chain, layout, q, p)[0][:3, 3], expected, atol=1e-12)
-    np.testing.assert_allclose(tool_position_residual(chain, layout, q, p, expected + [0.0, 0.002, 0.0]),
-                               [0.0, -0.002, 0.0], atol=1e-12)
+    poses = marker_poses(chain, layout, q[None], p)
+    np.testing.assert_allclose(position_residuals(poses, (expected + [0.0, 0.002, 0.0])[None])[0],
+                               [[0.0, -0.002, 0.0]], atol=1e-12)
     measured = gtsam.Pose3(marker_pose(chain, layout, q, p)[0]).compose(gtsam.Pose3.Expmap(np.r_[0, 0, 0.01, 0, 0, 0]))
-    np.testing.assert_allclose(tool_pose_residual(chain, layout, q, p, measured), [0, 0, -0.01, 0, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(pose_residuals(poses, measured.inverse().matrix()[None])[0], [[0, 0, -0.01, 0, 0, 0]],
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("tool", ["pose3", "point3"])
+def test_batched_marker_poses_and_jacobians_equal_pinocchios_per_sample(tool):
+    """batch.marker_poses (one numpy pass for all samples) against kinematics.marker_pose (Pinocchio per
+    sample), with parameters shared by every sample and with per-sample (time-varying) ones."""
+    rng = np.random.default_rng(5)
+    chain, layout, p = example_arm(rng, tool)
+    q = rng.uniform(-3, 3, (12, chain.n))
+    offsets = [rng.normal(scale=0.1, size=12) for _ in p.offsets]
+    placements = [rng.normal(scale=0.1, size=(12, len(axes))) for _, axes in layout.placements]
+    for shared in (True, False):
+        given = p if shared else Parameters(p.base, p.tool, offsets, placements)
+        batched = marker_poses(chain, layout, q, given, jacobians=True)
+        for i in range(len(q)):
+            own = p if shared else Parameters(p.base, p.tool, np.array([o[i] for o in offsets]),
+                                              [x[i] for x in placements])
+            T, blocks = marker_pose(chain, layout, q[i], own, jacobians=True)
+            np.testing.assert_allclose(batched.T[i], T, atol=1e-12)
+            for a, b in zip(batched.blocks, blocks):
+                np.testing.assert_allclose(a[i], b, atol=1e-12)

@@ -1,0 +1,143 @@
+"""The marker factors of one config entry evaluated together (docs/models/serial_arm.md#speed).
+
+GTSAM calls each `CustomFactor` on its own, and a solver's linearization calls every factor of the
+entry at the same parameter values. The entry's factors therefore share one evaluator: the first
+factor called at parameter values not seen before has every factor of the entry (those whose
+variables the values hold) evaluated in one vectorized pass (batch.py), and the others read their
+residual and Jacobians from it. A factor's cached result is used only when every one of its
+variables equals, bit for bit, the values it was computed at (its readers return the raw bytes); anything else is computed again, so
+the result is always the factor's own (incremental solvers that add one factor at a time get it
+evaluated alone).
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from . import batch
+from .chain import SerialChain
+from .kinematics import Layout, Parameters
+
+KINDS = ("pose", "position", "relative")
+
+
+def _read_pose3(values: gtsam.Values, key: int) -> bytes:
+    return values.atPose3(key).matrix().tobytes()
+
+
+def _read_point3(values: gtsam.Values, key: int) -> bytes:
+    return values.atPoint3(key).tobytes()
+
+
+def _read_scalar(values: gtsam.Values, key: int) -> float:
+    return values.atDouble(key)
+
+
+def _read_vector(values: gtsam.Values, key: int) -> bytes:
+    return values.atVector(key).tobytes()
+
+
+class EntryEvaluator:
+    """Residuals and Jacobians of an entry's marker factors. Factor i's variables are `keys[i]`: its
+    joint vector (two for `relative`), then the layout's variables. `measured`: per factor, the
+    inverse measured pose (pose, relative; (N, 4, 4)) or the measured position ((N, 3))."""
+
+    def __init__(self, chain: SerialChain, layout: Layout, kind: str, measured: np.ndarray, keys: list[list[int]]):
+        assert kind in KINDS
+        self.chain, self.layout, self.kind = chain, layout, kind
+        self.measured = np.asarray(measured, float)
+        self.keys = [list(k) for k in keys]
+        self.joints = 2 if kind == "relative" else 1
+        tool = {"pose3": _read_pose3, "point3": _read_point3}.get(layout.tool)
+        self.readers = ([_read_vector] * self.joints + [_read_pose3] * layout.base + ([tool] if tool else [])
+                        + [_read_scalar] * len(layout.offsets) + [_read_vector] * len(layout.placements))
+        self.reader_of = {k: r for ks in self.keys for k, r in zip(ks, self.readers)}
+        tool_shape = {"pose3": (4, 4), "point3": (3,)}.get(layout.tool)
+        self.shapes = ([(chain.n,)] * self.joints + [(4, 4)] * layout.base + ([tool_shape] if tool_shape else [])
+                       + [None] * len(layout.offsets) + [(len(axes),) for _, axes in layout.placements])
+        n = len(self.keys)
+        # variables every factor shares (static parameters): a change in them means a new linearization
+        self.shared = [p for p in range(self.joints, len(self.readers))
+                       if n and all(ks[p] == self.keys[0][p] for ks in self.keys)]
+        dim = 3 if kind == "position" else 6
+        widths = [chain.n] * self.joints + layout.widths
+        self.e = np.zeros((n, dim))
+        self.H = [np.zeros((n, dim, w)) for w in widths]
+        self.fingerprints: list[tuple | None] = [None] * n
+        self.last_shared: tuple | None = None
+
+    def error(self, i: int, this, values: gtsam.Values, H) -> np.ndarray:
+        """The CustomFactor callback of factor i (bind i with functools.partial)."""
+        fp = tuple([read(values, k) for read, k in zip(self.readers, self.keys[i])])
+        if fp != self.fingerprints[i]:
+            self._refresh(i, fp, values)
+        if H is not None:
+            for j, block in enumerate(self.H):
+                H[j] = block[i]
+        return self.e[i]
+
+    def _refresh(self, i: int, fp: tuple, values: gtsam.Values) -> None:
+        shared = tuple(fp[p] for p in self.shared)
+        if self.shared and shared != self.last_shared:  # new parameter values: evaluate every factor
+            self.last_shared = shared
+            self._evaluate_present(values)
+        if fp != self.fingerprints[i]:
+            self._compute([i], [fp])
+
+    def _evaluate_present(self, values: gtsam.Values) -> None:
+        """Every factor whose variables `values` holds and whose cached result is not at them."""
+        read = {k: r(values, k) for k, r in self.reader_of.items() if values.exists(k)}
+        stale, fps = [], []
+        for i, ks in enumerate(self.keys):
+            if all(k in read for k in ks):
+                fp = tuple([read[k] for k in ks])
+                if fp != self.fingerprints[i]:
+                    stale.append(i)
+                    fps.append(fp)
+        if stale:
+            self._compute(stale, fps)
+
+    def _column(self, fps: list[tuple], p: int, stacked: bool = False):
+        """Variable p's value for the samples: one value when every sample shares it, else stacked."""
+        shape = self.shapes[p]
+        if not stacked and (p in self.shared or len(fps) == 1):
+            return fps[0][p] if shape is None else np.frombuffer(fps[0][p]).reshape(shape)
+        if shape is None:
+            return np.array([fp[p] for fp in fps])
+        return np.frombuffer(b"".join([fp[p] for fp in fps])).reshape((len(fps),) + shape)
+
+    def _parameters(self, fps: list[tuple]) -> Parameters:
+        lay, p = self.layout, self.joints
+        out = Parameters()
+        if lay.base:
+            out.base, p = self._column(fps, p), p + 1
+        if lay.tool:
+            tool = self._column(fps, p)
+            if lay.tool == "point3":
+                point, tool = tool, np.zeros(np.shape(tool)[:-1] + (4, 4))
+                tool[..., :3, :3] = np.eye(3)
+                tool[..., :3, 3] = point
+                tool[..., 3, 3] = 1.0
+            out.tool, p = tool, p + 1
+        out.offsets = [self._column(fps, p + j) for j in range(len(lay.offsets))]
+        p += len(lay.offsets)
+        out.placements = [self._column(fps, p + j) for j in range(len(lay.placements))]
+        return out
+
+    def _compute(self, idx: list[int], fps: list[tuple]) -> None:
+        params = self._parameters(fps)
+        q = [self._column(fps, j, stacked=True) for j in range(self.joints)]
+        if self.kind == "relative":
+            a = batch.marker_poses(self.chain, self.layout, q[0], params, True)
+            b = batch.marker_poses(self.chain, self.layout, q[1], params, True)
+            e, blocks = batch.relative_residuals(a, b, self.measured[idx])
+        else:
+            poses = batch.marker_poses(self.chain, self.layout, q[0], params, True)
+            residuals = batch.pose_residuals if self.kind == "pose" else batch.position_residuals
+            e, blocks = residuals(poses, self.measured[idx])
+        self.e[idx] = e
+        for H, block in zip(self.H, blocks):
+            H[idx] = block
+        for i, fp in zip(idx, fps):
+            self.fingerprints[i] = fp
