@@ -8,6 +8,7 @@ baselines measured in the same process.
 Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
 cable_sag (sagging cables: thesis Table 5.2, finite-element data, static simulator and calibration speed),
 uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed),
+serial_arm (real UR10 leave-one-out against FIGAROH, scipy side by side, 7-DoF speed, drift, simulation table),
 busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.
 """
@@ -28,7 +29,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "busy_core")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "busy_core")
 
 
 def _git(*args: str) -> str:
@@ -94,6 +95,9 @@ def summary(results: dict) -> str:
     if "uwb" in results:
         import bench_uwb
         lines += bench_uwb.summary(results["uwb"])
+    if "serial_arm" in results:
+        import bench_serial_arm
+        lines += bench_serial_arm.summary(results["serial_arm"])
     if "busy_core" in results:
         import bench_busy_core
         lines += bench_busy_core.summary(results["busy_core"])
@@ -117,10 +121,11 @@ def main(argv=None) -> int:
     import bench_factors
     import bench_isam2
     import bench_scaled_vo
+    import bench_serial_arm
     import bench_uwb
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
                "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb,
-               "busy_core": bench_busy_core}
+               "serial_arm": bench_serial_arm, "busy_core": bench_busy_core}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

@@ -10,8 +10,9 @@ version adds names, a major one changes or removes them. docs/plugin_guide.md do
 from __future__ import annotations
 
 from . import hookimpl
-from .components import (CheckScope, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
+from .components import (CheckScope, Command, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
                          Spec)
+from .data.files import read_csv_stream
 from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
 from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
@@ -22,19 +23,25 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
 from .models.integration import held_intervals
 from .models.planar import differential_drive_twist, unicycle_increment
 from .robots.description import Parameter, RobotDescription, Sensor
+from .robots.checked import load_robot_description
 from .robots.registered import robot_description_data, robot_description_files
+from .report.writer import check_output_folder, write_output_folder
 from .models.simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
 from .testing import FactorExample
 
-API_VERSION = "1.1"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.2"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+# 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
+#      check_output_folder, write_output_folder
 
 __all__ = [
     "API_VERSION", "hookimpl",
     # components a plugin provides, and what they are given
     "CheckScope", "FactorType", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
     "RobotDescription", "Parameter", "Sensor",
-    # robot descriptions shipped as package data, by name
-    "robot_description_files", "robot_description_data",
+    # robot descriptions shipped as package data, by name; a description by name or file, checked
+    "robot_description_files", "robot_description_data", "load_robot_description",
+    # subcommands of `fusionkit`, and the output folders they (and robot models' outputs) write
+    "Command", "check_output_folder", "write_output_folder", "read_csv_stream",
     # errors (one located line each)
     "ConfigError", "DataError", "FusionkitError", "PluginError", "SolverError",
     # variables and noise

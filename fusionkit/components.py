@@ -10,6 +10,7 @@ checks them before any work starts. `check()` adds semantic checks; raise `spec.
 
 from __future__ import annotations
 
+import argparse
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
@@ -176,10 +177,19 @@ class Source(Component):
 
 
 class RobotModel(Component):
-    """Validates the model-specific keys of a robot description (`schema` covers them)."""
+    """Validates the model-specific keys of a robot description (`schema` covers them); optionally
+    writes model-specific files after a run (`outputs`)."""
 
     def check_description(self, desc: "RobotDescription") -> None:
         """Semantic checks of a description after its schema passed (raise `desc.error(...)`)."""
+
+    def outputs(self, robot: str, calibrated: "RobotDescription") -> dict[str, str | bytes]:
+        """Files `fusionkit run` writes for robot `robot` into its output folder: {path relative to the
+        folder, `/`-separated (e.g. `robots/arm.urdf`): text or bytes}. `calibrated` is the robot's
+        description with every estimated parameter at its estimate (a time-varying one at its last
+        value; `Parameter.time_varying` says which); the others keep their description values.
+        Default: none."""
+        return {}
 
 
 class Initializer(Component):
@@ -226,3 +236,24 @@ class Simulator(Component):
     def config(self, params: dict) -> dict:
         """A runnable config (without sources) that estimates this dataset."""
         return {}
+
+
+BUILTIN_COMMANDS = ("run", "validate", "plugins", "simulate")  # fusionkit's own; a plugin may not take them
+
+
+class Command(ABC):
+    """A `fusionkit <name>` subcommand a plugin adds (hook `register_commands`). The CLI runs it as
+    its own commands: `--debug` and `-q` are accepted, a `FusionkitError` becomes one line on stderr
+    with exit code 2, any other exception an internal error (exit 3). `summary` is the one-line help
+    shown by `fusionkit --help` and `fusionkit plugins`. A command that writes files writes them with
+    `fusionkit.api.write_output_folder` (the rules of `run --out`)."""
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        """Declare the command's arguments on its (sub)parser."""
+
+    @abstractmethod
+    def run(self, args: argparse.Namespace) -> int:
+        """Do the work; return the exit code (0: success)."""

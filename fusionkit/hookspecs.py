@@ -44,3 +44,9 @@ def register_robot_descriptions() -> dict:
     """Return {name: file} of robot descriptions shipped as package data (`importlib.resources`
     files, e.g. `fusionkit.api.robot_description_files(__name__)`): a config names one by name
     (`description: arascam`), a simulator reads one with `fusionkit.api.robot_description_data`."""
+
+
+@hookspec
+def register_commands() -> list[type]:
+    """Return `fusionkit.api.Command` subclasses: subcommands `fusionkit <name>` (e.g. a planning tool
+    that needs no config), listed by `fusionkit plugins` and `fusionkit --help`."""

@@ -12,7 +12,7 @@ from typing import Any
 import pluggy
 
 from . import hookspecs
-from .components import FactorType, Initializer, RobotModel, Simulator, Source
+from .components import BUILTIN_COMMANDS, Command, FactorType, Initializer, RobotModel, Simulator, Source
 from .errors import PluginError
 from .robots.registered import KIND as DESCRIPTIONS, is_description_name
 
@@ -33,8 +33,11 @@ KINDS = {
     "initializers": ("register_initializers", Initializer),
     "simulators": ("register_simulators", Simulator),
 }
-# everything a plugin registers: the component classes, and robot descriptions ({name: file})
-REGISTRATIONS = {**KINDS, DESCRIPTIONS: ("register_robot_descriptions", None)}
+COMMANDS = "commands"  # subcommands `fusionkit <name>` (not config components: no schema)
+# everything a plugin registers: the component classes, commands, and robot descriptions ({name: file})
+REGISTRATIONS = {**KINDS, COMMANDS: ("register_commands", Command),
+                 DESCRIPTIONS: ("register_robot_descriptions", None)}
+RESERVED = {COMMANDS: BUILTIN_COMMANDS}  # names no plugin may register
 
 
 @dataclass
@@ -162,6 +165,8 @@ def build_registry(pm: pluggy.PluginManager, broken: list[str] | None = None) ->
                     if name in names[:i]:
                         raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {name!r} is "
                                           "registered twice")
+                    if name in RESERVED.get(kind, ()):
+                        raise PluginError(f"plugin {pname}: command {name!r} is one of fusionkit's own commands")
                     if name in reg.components[kind]:
                         raise PluginError(f"plugin {pname}: {kind[:-1].replace('_', ' ')} {name!r} is "
                                           f"already provided by {reg.provider[(kind, name)]}")

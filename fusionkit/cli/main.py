@@ -23,11 +23,6 @@ def _progress(args):
     return StatusLine()
 
 
-def _write_error(out: Path, exc: OSError) -> FusionkitError:
-    return FusionkitError(f"--out {out}: cannot write {exc.filename or out} ({exc.strerror or exc}); nothing was "
-                          "written; expected a writable folder")
-
-
 def _warn_broken_plugins() -> None:
     from ..plugins import registry
     for reason in registry().broken:
@@ -40,7 +35,7 @@ def cmd_run(args) -> int:
     from ..pipeline import estimate
     from ..report.outputs import write_outputs
     from ..report.summary import summary_text
-    from ..report.writer import atomic_directory, check_output_folder, output_entries
+    from ..report.writer import atomic_directory, check_output_folder, output_entries, write_error
 
     config = load_config(args.config, args.set)
     out = Path(args.out) if args.out else Path("out") / config.name
@@ -54,7 +49,7 @@ def cmd_run(args) -> int:
             with atomic_directory(out, "run", inputs) as tmp:
                 write_outputs(result, tmp, plots=config.output["plots"] and not args.no_plots)
         except OSError as exc:
-            raise _write_error(out, exc) from None
+            raise write_error(out, exc) from None
     print(summary_text(result))
     written = [name + ("/" if (out / name).is_dir() else "") for name in sorted(output_entries(out))]
     print(f"  outputs: {out}/ ({', '.join(written)})")
@@ -108,13 +103,23 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def command_usage(cls) -> str:
+    """A plugin command's usage line (`fusionkit NAME ...`), from its own arguments."""
+    p = argparse.ArgumentParser(prog=f"fusionkit {cls.name}", add_help=False)
+    cls().add_arguments(p)
+    return " ".join(p.format_usage().split())[len("usage: "):]
+
+
 def _listed(reg, kind: str, name: str) -> dict:
-    """One registered item for `fusionkit plugins`: a component's summary and schema, or a robot
-    description's summary and file."""
+    """One registered item for `fusionkit plugins`: a component's summary and schema, a command's
+    summary and usage, or a robot description's summary and file."""
+    from ..plugins import COMMANDS as PLUGIN_COMMANDS
     from ..robots.registered import KIND as DESCRIPTIONS, robot_description_data
     if kind == DESCRIPTIONS:
         return {"name": name, "summary": str(robot_description_data(name).get("summary", "")),
                 "file": str(reg.get(kind, name))}
+    if kind == PLUGIN_COMMANDS:
+        return {"name": name, "summary": reg.get(kind, name).summary, "usage": command_usage(reg.get(kind, name))}
     return {"name": name, "summary": reg.get(kind, name).summary, "schema": reg.get(kind, name).schema}
 
 
@@ -136,8 +141,8 @@ def component_keys(reg, name: str) -> list[str]:
             continue
         item = _listed(reg, kind, name)
         lines.append(f"{_kind_label(kind)} {name} ({reg.provider[(kind, name)]}): {item['summary']}")
-        if "file" in item:
-            lines.append(f"  file: {item['file']}")
+        if "file" in item or "usage" in item:
+            lines.append(f"  file: {item['file']}" if "file" in item else f"  usage: {item['usage']}")
             continue
         rows = key_rows(item["schema"])
         widths = [max((len(row[i]) for row in rows), default=0) for i in (0, 1)]
@@ -172,7 +177,7 @@ def cmd_plugins(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    from ..report.writer import check_output_folder
+    from ..report.writer import check_output_folder, write_error
     from ..simulate import write_dataset
     out = Path(args.out)
     check_output_folder(out)
@@ -182,7 +187,7 @@ def cmd_simulate(args) -> int:
                 progress.stage(f"simulating {args.scenario}")
             files = write_dataset(args.scenario, out, args.set, args.seed)
     except OSError as exc:
-        raise _write_error(out, exc) from None
+        raise write_error(out, exc) from None
     config = out / "config.yaml"
     hint = f"run it with: fusionkit run {config}" if config in files else f"{args.scenario} writes no config"
     print(f"wrote {len(files)} files to {out}/; {hint}")
@@ -229,7 +234,8 @@ def _common_options(debug_default) -> argparse.ArgumentParser:
     return common
 
 
-def parser() -> argparse.ArgumentParser:
+def parser(plugin_commands: list[type] = ()) -> argparse.ArgumentParser:
+    """The argument parser: fusionkit's own commands, then `plugin_commands` (Command classes)."""
     p = _Parser(prog="fusionkit", description="Robot calibration and state estimation with factor graphs, "
                 "declared in YAML.", parents=[_common_options(False)])
     p.add_argument("--version", action="version", version=f"fusionkit {__version__}")
@@ -259,10 +265,27 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario parameter, e.g. duration=10")
+    for cls in plugin_commands:
+        command = cls()
+        cmd = sub.add_parser(cls.name, parents=common, help=cls.summary, description=cls.summary)
+        command.add_arguments(cmd)
+        cmd.set_defaults(plugin_command=command)
     return p
 
 
+# fusionkit's own commands (components.BUILTIN_COMMANDS: names no plugin command may take)
 COMMANDS = {"run": cmd_run, "validate": cmd_validate, "plugins": cmd_plugins, "simulate": cmd_simulate}
+
+
+def plugin_commands(argv: list[str]) -> list[type]:
+    """The installed plugins' Command classes, unless the command is one of fusionkit's own or the
+    version is asked for (those parse their arguments without loading any plugin)."""
+    word = next((a for a in argv if not a.startswith("-")), None)  # options before the command take no value
+    if word in COMMANDS or "--version" in argv:
+        return []
+    from ..plugins import COMMANDS as KIND, registry
+    reg = registry()
+    return [reg.get(KIND, name) for name in reg.names(KIND)]
 
 
 def _one_line(exc: BaseException) -> str:
@@ -271,12 +294,22 @@ def _one_line(exc: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        extra = plugin_commands(argv)
+    except FusionkitError as exc:  # a built-in plugin that fails to register: no traceback either
+        if "--debug" in argv:
+            raise
+        print(f"fusionkit: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_ERROR
+    args = parser(extra).parse_args(argv)
     from ..threads import one_blas_thread
     try:
         _warn_broken_plugins()
         with one_blas_thread():
-            return COMMANDS[args.command](args)
+            if args.command in COMMANDS:
+                return COMMANDS[args.command](args)
+            return int(args.plugin_command.run(args))
     except FusionkitError as exc:
         if args.debug:
             raise

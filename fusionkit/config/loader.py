@@ -10,7 +10,8 @@ from ..components import CheckScope, Spec
 from ..plugins import registry
 from ..graph.variables import vartype_named
 from ..robots.calibration_file import apply_calibration, calibration_entries
-from ..robots.description import COMMON_KEYS as DESCRIPTION_KEYS, RobotDescription, load_description
+from ..robots.checked import check_with_model
+from ..robots.description import RobotDescription, load_description
 from .defaults import with_defaults
 from .overrides import apply_override, new_key_note, parse_key_path
 from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against
@@ -127,14 +128,7 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
     for name, raw in doc.data["robots"].items():
         path = ("robots", name)
         desc = load_description(raw["description"], base, doc, path + ("description",), reg)
-        model = reg.get("robot_models", desc.model)
-        if model is None:
-            raise desc.error(("model",), reg.unknown("robot_models", desc.model))
-        model_schema = dict(model.schema)
-        # the common keys were validated already; listing them keeps "accepted keys" complete
-        model_schema["properties"] = {**{k: {} for k in DESCRIPTION_KEYS}, **model.schema.get("properties", {})}
-        validate_against(desc.doc, model_schema, desc.extra)
-        model().check_description(desc)
+        check_with_model(desc, reg)
         if "overrides" in raw:
             file = base / raw["overrides"]
             _require_file(doc, path + ("overrides",), file)

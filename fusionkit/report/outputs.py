@@ -1,9 +1,10 @@
-"""report.json, calibration.yaml, trajectories/<robot>.tum and, when asked, covariances/<robot>.csv
-from a RunResult."""
+"""report.json, calibration.yaml, trajectories/<robot>.tum, each robot model's own files
+(`RobotModel.outputs`) and, when asked, covariances/<robot>.csv from a RunResult."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,9 @@ from ..eval.states import StateSeries
 from ..graph.variables import component_names
 from ..pipeline import ParameterEstimate, RunResult
 from ..robots.calibration_file import calibration_entry
-from ..robots.description import Parameter
+from ..plugins import registry
+from ..robots.description import Parameter, RobotDescription
+from .writer import write_files
 
 
 def estimate_entry(result: RunResult, est: ParameterEstimate) -> dict[str, Any]:
@@ -31,18 +34,41 @@ def estimate_entry(result: RunResult, est: ParameterEstimate) -> dict[str, Any]:
                              values, sigma)
 
 
-def _description_entry(param: Parameter, estimates: dict[str, ParameterEstimate]) -> dict[str, Any] | None:
-    """Entry of a description parameter; a time-varying one gives its last value per element."""
+def _estimated(param: Parameter, estimates: dict[str, ParameterEstimate]) -> tuple[list, np.ndarray | None] | None:
+    """(values, sigma) of a description parameter's estimate, a time-varying one's last value per
+    element; None when it was not estimated."""
     if not param.time_varying:
         est = estimates.get(param.name)
-        return None if est is None else calibration_entry(param, est.values, est.sigma)
+        return None if est is None else (est.values, est.sigma)
     names = [f"{param.name}[{i}]" for i in range(param.count)] if param.indexed else [param.name]
     series = [estimates.get(n) for n in names]
     if any(e is None for e in series):
         return None
     last = [e.values[-1] for e in series]
     sigma = None if any(e.sigma is None for e in series) else np.array([e.sigma[-1] for e in series])
-    return {**calibration_entry(param, last, sigma), "time_varying": True}
+    return last, sigma
+
+
+def _description_entry(param: Parameter, estimates: dict[str, ParameterEstimate]) -> dict[str, Any] | None:
+    """Entry of a description parameter; a time-varying one gives its last value per element."""
+    found = _estimated(param, estimates)
+    if found is None:
+        return None
+    entry = calibration_entry(param, *found)
+    return {**entry, "time_varying": True} if param.time_varying else entry
+
+
+def calibrated_description(result: RunResult, robot: str) -> RobotDescription:
+    """The robot's description with each estimated parameter at its estimate (time-varying: the last
+    value), what a robot model's `outputs` receives."""
+    desc = result.config.robots[robot].description
+    estimates = result.parameters.get(robot, {})
+    parameters = {}
+    for name, param in desc.parameters.items():
+        found = _estimated(param, estimates)
+        keep = found is None or len(found[0]) != param.count
+        parameters[name] = param if keep else replace(param, values=list(found[0]))
+    return replace(desc, parameters=parameters)
 
 
 def calibration_document(result: RunResult) -> dict:
@@ -156,3 +182,6 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
         from .plots import write_plots
         (out / "plots").mkdir()
         write_plots(result, out / "plots")
+    for robot, setup in result.config.robots.items():  # model-specific files (RobotModel.outputs)
+        model = registry().get("robot_models", setup.description.model)
+        write_files(out, model().outputs(robot, calibrated_description(result, robot)), f"robot model {model.name}")

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Iterable, Iterator
 
 from .. import __version__
-from ..errors import FusionkitError
+from ..errors import FusionkitError, PluginError
 
 MARKER = ".fusionkit-output"
 TEMP_PREFIX = ".fusionkit-tmp-"
@@ -108,3 +108,40 @@ def _replace_entries(folder: Path, tmp: Path, new: list[str], out: Path) -> None
         (folder / name).rename(old / name)
     for name in new:
         (tmp / name).rename(folder / name)
+
+
+def write_error(out: Path, exc: OSError) -> FusionkitError:
+    """The one-line error for an OSError while writing the outputs into `out`."""
+    return FusionkitError(f"--out {out}: cannot write {exc.filename or out} ({exc.strerror or exc}); nothing was "
+                          "written; expected a writable folder")
+
+
+def write_files(folder: Path, files: dict[str, str | bytes], source: str) -> None:
+    """Write {relative path: text or bytes} into `folder` (a fresh output folder), creating subfolders.
+    A path that is absolute, leaves the folder (`..`) or names a file already written is a PluginError
+    naming `source` (who produced the files, e.g. "robot model serial_arm")."""
+    for name, content in files.items():
+        rel = Path(name)
+        if not name or rel.is_absolute() or ".." in rel.parts or rel.parts[0].startswith(TEMP_PREFIX) \
+                or name == MARKER:
+            raise PluginError(f"{source}: output file {name!r} is not a relative path inside the output folder")
+        path = folder / rel
+        if path.exists():
+            raise PluginError(f"{source}: output file {name!r} is already written by another output")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content, encoding="utf-8")
+
+
+def write_output_folder(out: Path, command: str, files: dict[str, str | bytes], inputs: Iterable[Path] = ()) -> Path:
+    """Write `files` ({relative path: text or bytes}) as the output of `command` into `out`, with the
+    rules of `fusionkit run --out` (atomic_directory): all or nothing, never over a user's file, never
+    into a folder holding an input. Returns the folder; errors are one-line FusionkitErrors."""
+    try:
+        with atomic_directory(out, command, inputs) as tmp:
+            write_files(tmp, files, f"fusionkit {command}")
+    except OSError as exc:
+        raise write_error(out, exc) from None
+    return Path(out)

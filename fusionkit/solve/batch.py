@@ -41,7 +41,7 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
     qr, ordering = linear_settings(settings)
-    check_constrained(problem, graph, qr, ordering)
+    first = check_constrained(problem, graph, qr, ordering)  # the first LM/GN step reuses its elimination
     method = settings["method"]
     rtol, atol = settings["relative_tolerance"], settings["absolute_tolerance"]
     max_iterations = settings["max_iterations"]
@@ -52,7 +52,7 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
         else:
             damping = DampingSettings() if method == "lm" else None
             values, history = levenberg_marquardt(graph, problem.initial, rtol, atol, max_iterations, damping,
-                                                  progress, qr, ordering)
+                                                  progress, qr, ordering, first)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)
         if msg is None:

@@ -50,9 +50,10 @@ def _first_of_family(problem: Problem, linear: gtsam.GaussianFactorGraph, key: i
 
 
 def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False,
-                      ordering: str = "colamd") -> None:
+                      ordering: str = "colamd") -> tuple[gtsam.GaussianFactorGraph, gtsam.GaussianBayesTree]:
     """Every variable must appear in a factor, and the linearized system must be determinate
-    (to Cholesky, or with `qr` to QR elimination)."""
+    (to Cholesky, or with `qr` to QR elimination). Returns the system linearized at the initial values
+    and its elimination, which a batch solver's first step reuses."""
     used = set(graph.keyVector())
     for key in problem.initial.keys():
         if key not in used:
@@ -60,7 +61,7 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: b
                               "measures it, or remove what declares it")
     linear = graph.linearize(problem.initial)
     try:
-        eliminate(linear, qr, ordering)
+        return linear, eliminate(linear, qr, ordering)
     except RuntimeError as exc:
         key = _indeterminate_key(exc)
         if key is None:

@@ -74,22 +74,29 @@ def _converged(before: float, after: float, rtol: float, atol: float) -> bool:
 def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, rtol: float, atol: float,
                         max_iterations: int, damping: DampingSettings | None,
                         progress: Callable[[int, float], None] | None = None,
-                        qr: bool = False, ordering: str = "colamd") -> tuple[gtsam.Values, list[float]]:
+                        qr: bool = False, ordering: str = "colamd",
+                        first: tuple[gtsam.GaussianFactorGraph, gtsam.GaussianBayesTree] | None = None,
+                        ) -> tuple[gtsam.Values, list[float]]:
     """Minimize graph.error; `damping=None` gives plain Gauss-Newton; `qr` solves each linear
-    system by QR instead of Cholesky, eliminated in `ordering` (colamd, metis). Returns
+    system by QR instead of Cholesky, eliminated in `ordering` (colamd, metis). `first`: the system
+    linearized at `initial` and its elimination in the same way (checks.check_constrained's), which the
+    first iteration then reuses instead of computing them again (the same numbers). Returns
     (values, cost history)."""
     values, cost = initial, graph.error(initial)
     history = [cost]
     damper = Damping(values, damping) if damping else None
     lam = 0.0
     for it in range(1, max_iterations + 1):
-        linear = graph.linearize(values)
+        linear, tree = first if it == 1 and first is not None else (graph.linearize(values), None)
         diagonal = None
         while True:
             if lam > 0 and diagonal is None:
                 diagonal = hessian_diagonal(linear, int(damper.offsets[-1]))
             try:
-                delta = solve_linear(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr, ordering)
+                if lam == 0 and tree is not None:  # the undamped system, already eliminated
+                    delta = tree.optimize()
+                else:
+                    delta = solve_linear(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr, ordering)
             except RuntimeError:  # an undamped system can be singular where the damped one is not
                 if not damper or lam > 0:
                     raise

@@ -1,9 +1,12 @@
 """Built-in `serial_arm` plugin: serial arms from a URDF (Pinocchio forward kinematics), their kinematic
-calibration factors, identifiability, and the arm simulator (models: docs/models/serial_arm.md)."""
+calibration factors, identifiability, the base/marker initializer and the arm simulator (models:
+docs/models/serial_arm.md)."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
+from .commands import COMMANDS
 from .factors import FACTOR_TYPES
+from .initializer import INITIALIZERS
 from .model import SerialArmModel
 from .simulator import SIMULATORS
 
@@ -11,6 +14,11 @@ from .simulator import SIMULATORS
 @hookimpl
 def register_factor_types():
     return FACTOR_TYPES
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
 
 
 @hookimpl
@@ -26,3 +34,8 @@ def register_simulators():
 @hookimpl
 def register_robot_descriptions():
     return robot_description_files(__name__)
+
+
+@hookimpl
+def register_commands():
+    return COMMANDS

@@ -143,6 +143,11 @@ class SerialArmModel(RobotModel):
                                              f"is already in another {key} group")
                         taken.add((key, j, axis))
 
+    def outputs(self, robot: str, calibrated: RobotDescription) -> dict[str, str]:
+        """`robots/<robot>.urdf`: the URDF with the calibrated parameters built in (export.py)."""
+        from .export import urdf_output
+        return urdf_output(robot, calibrated)
+
     @staticmethod
     def _check_group(desc: RobotDescription, path: tuple, group: dict, joints: list[str], vartype: str) -> None:
         unknown = [j for j in group["joints"] if j not in joints]

@@ -146,10 +146,10 @@ class ArmSimulator(Simulator):
     def _motion(params: dict, chain, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Sample times and true joint values: uniform within the limits (at most +-pi), or sinusoids
         of 0.02-0.08 Hz around the middle of the range."""
-        lo, hi = np.maximum(chain.lower, -np.pi), np.minimum(chain.upper, np.pi)
         if params["motion"] == "static":
             n = params["configurations"]
-            return np.arange(n, dtype=float), rng.uniform(lo, hi, (n, chain.n))
+            return np.arange(n, dtype=float), random_configurations(chain, n, rng)
+        lo, hi = joint_range(chain)
         t = np.arange(0.0, params["duration"], 1.0 / params["rate"])
         mid, amp = (lo + hi) / 2, np.minimum((hi - lo) / 2 * 0.8, 1.2)
         freq, phase = rng.uniform(0.02, 0.08, chain.n), rng.uniform(0, 2 * np.pi, chain.n)
@@ -182,6 +182,17 @@ class ArmSimulator(Simulator):
         if params["drift"]["change"] <= 0:
             return {}
         return {variables.index((DRIFT_PARAMETER, 0)): drift_truth(params, t, 0.0)}
+
+
+def joint_range(chain) -> tuple[np.ndarray, np.ndarray]:
+    """The joint values the simulator moves in: the URDF limits, at most +-pi (rad; m for a prismatic joint)."""
+    return np.maximum(chain.lower, -np.pi), np.minimum(chain.upper, np.pi)
+
+
+def random_configurations(chain, count: int, rng: np.random.Generator) -> np.ndarray:
+    """(count, n) joint vectors drawn uniformly within `joint_range`: the simulator's static configurations."""
+    lo, hi = joint_range(chain)
+    return rng.uniform(lo, hi, (count, chain.n))
 
 
 def drift_truth(params: dict, t: np.ndarray, start: float) -> np.ndarray:

@@ -17,10 +17,15 @@ from fusionkit.plugins import registry
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "configs").glob("*.yaml"))
+# configs whose data are an external recording converted first (their factor types are covered by other configs)
+CONVERTED_DATA = {"arm_ur10_real"}
 
 
 @pytest.mark.parametrize("config", CONFIGS, ids=[c.stem for c in CONFIGS])
 def test_every_entry_applies_or_refuses_the_robust_kernel(config):
+    if config.stem in CONVERTED_DATA:
+        pytest.skip("needs a converted external recording; arm.tool_pose and arm.joint_encoders are checked on "
+                    "configs/arm_calibration.yaml")
     plain = load_config(config)
     streams, _ = read_sources(plain)
     reg = registry()

@@ -1,0 +1,40 @@
+"""A robot description checked by its robot model: what each robot of a config gets, and what a
+plugin command reads (`fusionkit.api.load_robot_description`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..config.schema import validate_against
+from ..config.yamlio import load_yaml
+from ..errors import ConfigError
+from .description import COMMON_KEYS, RobotDescription, description_from_document
+from .registered import is_description_name, registered_document
+
+
+def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
+    """`desc` after its robot model (registry `reg`) validated the model keys (its `schema`) and ran
+    `check_description`; errors are located in the description's file."""
+    model = reg.get("robot_models", desc.model)
+    if model is None:
+        raise desc.error(("model",), reg.unknown("robot_models", desc.model))
+    model_schema = dict(model.schema)
+    # the common keys were validated already; listing them keeps "accepted keys" complete
+    model_schema["properties"] = {**{k: {} for k in COMMON_KEYS}, **model.schema.get("properties", {})}
+    validate_against(desc.doc, model_schema, desc.extra)
+    model().check_description(desc)
+    return desc
+
+
+def load_robot_description(source: str | Path, base: Path | None = None) -> RobotDescription:
+    """The robot description `source` names -- a shipped one by name (`ur10_tracker`) or a YAML file
+    (relative to `base`, default the working folder) -- checked as a config's robots are; one located
+    ConfigError otherwise."""
+    from ..plugins import registry
+    reg = registry()
+    if is_description_name(str(source)):
+        return check_with_model(description_from_document(registered_document(str(source), reg, None, ())), reg)
+    file = Path(source) if Path(source).is_absolute() else Path(base or Path.cwd()) / source
+    if not file.is_file():
+        raise ConfigError(f"robot description file not found: {file}" + (" (a folder)" if file.is_dir() else ""))
+    return check_with_model(description_from_document(load_yaml(file)), reg)

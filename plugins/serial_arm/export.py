@@ -1,0 +1,140 @@
+"""The calibrated arm as a URDF (docs/models/serial_arm.md#urdf-export): Pinocchio reloads it to the
+forward kinematics of the calibrated parameters, with the encoder readings as joint values.
+
+Each joint that has an offset dq_j or a placement error delta_j gets the origin
+
+    origin'_j = origin_j * Exp(delta_j) * J_j(dq_j)
+
+(J_j: the joint's motion about, or along, its URDF axis), so that origin'_j J_j(q_j) = origin_j
+Exp(delta_j) J_j(q_j + dq_j): the URDF's joint value is the encoder reading q_j. Two fixed joints
+are added: `measurement_frame` -> the URDF's root link (origin: the base B times root in base_frame)
+and the tool frame's link -> `marker` (origin: the marker M). Everything else of the file is kept
+(xml.etree: comments kept, unused namespace declarations dropped).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from fusionkit.api import RobotDescription
+
+from . import lie
+from .batch import batch_chain
+from .chain import SerialChain
+from .factors import entry_layout
+from .kinematics import Layout, Parameters, joint_deltas, parameters_of
+from .model import arm_of
+from .urdf import urdf_path
+
+MEASUREMENT_FRAME = "measurement_frame"  # the new root link: the frame the tracker measures in
+MARKER = "marker"                        # the new link at the marker
+
+
+def _numbers(text: str | None) -> np.ndarray:
+    return np.array([float(x) for x in (text or "0 0 0").split()], float)
+
+
+def origin_matrix(element: ET.Element) -> np.ndarray:
+    """The 4x4 pose of a URDF `<origin xyz rpy>` child of `element` (identity when absent)."""
+    origin = element.find("origin")
+    T = np.eye(4)
+    if origin is not None:
+        T[:3, :3] = pin.rpy.rpyToMatrix(*_numbers(origin.get("rpy")))
+        T[:3, 3] = _numbers(origin.get("xyz"))
+    return T
+
+
+def set_origin(element: ET.Element, T: np.ndarray) -> None:
+    """Write pose T into `element`'s `<origin>` (created after `<child>` when absent), at full precision."""
+    origin = element.find("origin")
+    if origin is None:
+        children = list(element)
+        at = next((i + 1 for i, c in enumerate(children) if c.tag == "child"), len(children))
+        origin = ET.Element("origin")
+        origin.tail = children[at - 1].tail if at else None
+        element.insert(at, origin)
+    origin.set("xyz", _text(T[:3, 3]))
+    origin.set("rpy", _text(pin.rpy.matrixToRpy(T[:3, :3])))
+
+
+def _text(values) -> str:
+    """Numbers as URDF writes them, each to full double precision."""
+    return " ".join(format(float(x), ".17g") for x in values)
+
+
+def _free(name: str, taken: set[str]) -> str:
+    """`name`, or `name_1`, `name_2`, ... when the URDF already uses it."""
+    out, i = name, 0
+    while out in taken:
+        i += 1
+        out = f"{name}_{i}"
+    return out
+
+
+def _fixed_joint(name: str, parent: str, child: str, T: np.ndarray, indent: str) -> ET.Element:
+    """`<joint type="fixed">` from link `parent` to link `child` at pose T, indented as its siblings."""
+    joint = ET.Element("joint", name=name, type="fixed")
+    joint.text = indent + "  "
+    for tag, link in (("parent", parent), ("child", child)):
+        ET.SubElement(joint, tag, link=link).tail = indent + "  "
+    set_origin(joint, T)
+    joint[-1].tail = indent
+    return joint
+
+
+def calibrated_urdf(text: str, chain: SerialChain, layout: Layout, p: Parameters, note: str) -> str:
+    """The URDF `text` of `chain` with the parameters `p` of `layout` built in (module docstring) and
+    the comment `note` (plus the names of the added links) at the top of `<robot>`."""
+    prolog = text[:text.find("<robot")] if "<robot" in text else ""
+    robot = ET.fromstring(text, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    joints = {j.get("name"): j for j in robot.findall("joint")}
+    links = {link.get("name") for link in robot.findall("link")}
+    dq, deltas = joint_deltas(layout, p, chain.n)
+    bc = batch_chain(chain)
+    for j in sorted(set(layout.offsets) | set(deltas)):
+        twist = bc.twists[bc.order.index(j)]
+        element = joints[chain.joint_names[j]]
+        delta = deltas.get(j, np.zeros(6))
+        set_origin(element, origin_matrix(element) @ lie.exp(delta) @ lie.exp(dq[j] * twist))
+    children = {j.find("child").get("link") for j in joints.values()}
+    root = next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
+    B = np.eye(4) if p.base is None else p.base
+    M = np.eye(4) if p.tool is None else p.tool
+    tool = chain.model.frames[chain.tool_id].name
+    tool_link = tool if tool in links else joints[tool].find("child").get("link")  # a joint's frame is its child's
+    taken = links | set(joints)
+    meas, marker = _free(MEASUREMENT_FRAME, taken), _free(MARKER, taken)
+    indent = robot.text if robot.text and not robot.text.strip() else "\n  "
+    added = [ET.Element("link", name=meas),
+             _fixed_joint(_free(f"{meas}_joint", taken), meas, root, B @ chain.base_T_universe, indent),
+             ET.Element("link", name=marker),
+             _fixed_joint(_free(f"{marker}_joint", taken), tool_link, marker, M, indent)]
+    note += f" Added: link {meas} (the measurement frame, parent of {root}) and link {marker} (on {tool_link})."
+    comment = ET.Comment(f" {note.replace('--', '- -')} ")  # "--" may not appear in an XML comment
+    robot.insert(0, comment)
+    for element in [comment, *added]:
+        element.tail = indent
+    robot[-1].tail = indent  # the last original element, now followed by the new ones
+    robot.extend(added)
+    added[-1].tail = "\n"
+    return prolog + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
+    """{`robots/<robot>.urdf`: the description's URDF with its calibrated parameters built in}: the
+    serial_arm model's output of `fusionkit run` (RobotModel.outputs)."""
+    arm = arm_of(calibrated)
+    tool = calibrated.parameters[arm.tool].vartype.name if arm.tool else ""
+    layout, variables = entry_layout(arm, {}, tool)
+    p = parameters_of(layout, [calibrated.parameters[name].values[index or 0] for name, index in variables])
+    source = urdf_path(str(calibrated.extra["urdf"]), Path(calibrated.doc.file).parent)
+    drifting = sorted({name for name, _ in variables if calibrated.parameters[name].time_varying})
+    note = (f"fusionkit: robot {robot!r} ({calibrated.name}) calibrated, from {source.name}. Joints with an offset or "
+            "a placement error: origin = URDF origin * Exp(placement error) * the joint's motion by its offset, so "
+            "the joint value is the encoder reading."
+            + (f" Time-varying parameters at their last estimated value: {', '.join(drifting)}." if drifting else ""))
+    return {f"robots/{robot}.urdf": calibrated_urdf(source.read_text(encoding="utf-8"), arm.chain, layout, p, note)}
