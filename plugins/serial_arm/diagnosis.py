@@ -38,7 +38,7 @@ def hold_factor(key: int, vartype: str, value, axes: list[int], sigma: float = H
     return gtsam.CustomFactor(gaussian([sigma] * len(axes)), [key], partial(_hold_error, vartype, value, axes))
 
 
-def _variables(layout: Layout, variables: list, desc, chain) -> list[tuple]:
+def parameter_axes(layout: Layout, variables: list, desc, chain) -> list[tuple]:
     """(role, parameter, index, [(axis position, axis label, unit)]) of each layout variable."""
     roles = ["base"] * layout.base + ["tool"] * bool(layout.tool) + ["offset"] * len(layout.offsets) + \
         ["placement"] * len(layout.placements)
@@ -79,7 +79,7 @@ def identify(ctx, spec: Spec) -> dict | None:
     A, info, used_ks, configurations = _regressor(ctx, robot, desc, entries)
     if not info:
         return None
-    scale = np.array([_prior_sigma(desc, name, index, a) for _, name, index, a, _, _ in info])
+    scale = np.array([prior_sigma(desc, name, index, a) for _, name, index, a, _, _ in info])
     result = analyze(A, np.where(np.isfinite(scale), scale, 1.0))
     names = [element_name(desc, name, index) + label for _, name, index, _, label, _ in info]
     _hold(ctx, robot, desc, info, result.held, used_ks)
@@ -114,7 +114,7 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
         A = kinematic_regressor(chain, layout, nominal, q if ftype.kind == "relative" else q[:, 0], ftype.kind,
                                 ftype.sigmas(entry))
         targets, c = [], 0
-        for role, name, index, axes in _variables(layout, variables, desc, chain):
+        for role, name, index, axes in parameter_axes(layout, variables, desc, chain):
             used_ks.setdefault((name, index), set()).update(np.asarray(ks).reshape(len(ks), -1)[:, -1].tolist())
             for a, label, unit in axes:
                 if not desc.parameters[name].fixed:
@@ -135,7 +135,7 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
     return A, [info[col] for col in order], used_ks, len(configurations)
 
 
-def _prior_sigma(desc, name: str, index: int | None, axis: int) -> float:
+def prior_sigma(desc, name: str, index: int | None, axis: int) -> float:
     sigma = desc.parameters[name].sigma
     return float(sigma[index or 0][axis]) if sigma is not None else np.inf
 

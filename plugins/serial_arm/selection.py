@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .chain import SerialChain
-from .diagnosis import _prior_sigma, _variables, element_name
+from .diagnosis import element_name, parameter_axes, prior_sigma
 from .factors import entry_layout
 from .identifiability import analyze, kinematic_regressor
 from .kinematics import Layout, Parameters, parameters_of
@@ -66,12 +66,12 @@ def design_of(desc) -> Design:
     layout, variables = entry_layout(arm, {}, tool)
     nominal = parameters_of(layout, [desc.parameters[name].values[index or 0] for name, index in variables])
     names, units, prior, free, c = [], [], [], [], 0
-    for _, name, index, axes in _variables(layout, variables, desc, arm.chain):
+    for _, name, index, axes in parameter_axes(layout, variables, desc, arm.chain):
         for a, label, unit in axes:
             if not desc.parameters[name].fixed:
                 names.append(element_name(desc, name, index) + label)
                 units.append(unit)
-                prior.append(_prior_sigma(desc, name, index, a))
+                prior.append(prior_sigma(desc, name, index, a))
                 free.append(c)
             c += 1
     return Design(arm.chain, layout, nominal, names, units, np.array(prior, float), np.array(free, int))
