@@ -9,6 +9,8 @@ Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM ac
 cable_sag (sagging cables: thesis Table 5.2, finite-element data, static simulator and calibration speed),
 uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed),
 serial_arm (real UR10 leave-one-out against FIGAROH, scipy side by side, 7-DoF speed, drift, simulation table),
+wheels_real (wheel calibration on the OptiOdom recordings: UMBmark, least squares, the graph, held out),
+wheels_speed (10,000 wheel steps in batch, per step and preintegrated; fixed-lag latency),
 busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.
 """
@@ -29,7 +31,8 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "busy_core")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real", "wheels_speed",
+            "busy_core")
 
 
 def _git(*args: str) -> str:
@@ -98,6 +101,12 @@ def summary(results: dict) -> str:
     if "serial_arm" in results:
         import bench_serial_arm
         lines += bench_serial_arm.summary(results["serial_arm"])
+    if "wheels_real" in results:
+        import bench_wheels_real
+        lines += bench_wheels_real.summary(results["wheels_real"])
+    if "wheels_speed" in results:
+        import bench_wheels_speed
+        lines += bench_wheels_speed.summary(results["wheels_speed"])
     if "busy_core" in results:
         import bench_busy_core
         lines += bench_busy_core.summary(results["busy_core"])
@@ -123,9 +132,11 @@ def main(argv=None) -> int:
     import bench_scaled_vo
     import bench_serial_arm
     import bench_uwb
+    import bench_wheels_real
+    import bench_wheels_speed
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
                "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb,
-               "serial_arm": bench_serial_arm, "busy_core": bench_busy_core}
+               "serial_arm": bench_serial_arm, "wheels_real": bench_wheels_real, "wheels_speed": bench_wheels_speed, "busy_core": bench_busy_core}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

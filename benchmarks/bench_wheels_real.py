@@ -1,0 +1,134 @@
+"""Wheel calibration on real recordings (docs/models/wheels.md#real-data): the OptiOdom sessions
+(../shared/data/diffdrive_optiodom: a differential drive with two wheel encoders at 20 Hz and OptiTrack
+ground truth; no gyro, no passive wheel), 6 circular runs (December 2020) and 6 UMBmark squares
+(June 2020).
+
+Each parameter set (nominal; UMBmark on the squares; two-stage least squares on either session; the
+fusionkit graph calibration on either session -- wheels.preintegrated between states 1 s apart and the
+motion-capture poses as pose.absolute; OptiOdom's published parameters) is evaluated on both
+sessions with the reference implementation's measures: max e_d, the largest position error along any
+run's path, and the largest final position error and heading error, dead reckoning from each run's true
+start pose. A set calibrated on one session and evaluated on the other is held out. The published
+figures (reference_results.csv) are in-sample. Then the sensitivity of the least-squares fit to its
+segment length and of the graph calibration to its noise settings and state spacing.
+
+    python benchmarks/bench_wheels_real.py [--quick]
+"""
+
+from __future__ import annotations
+
+from research.external_data import external_data
+from research.wheels_optiodom import (CIRCULAR, GRAPH, NAME, SQUARE, WheelParameters, evaluate, graph_calibration,
+                                      least_squares, load_session, nominal, published, umbmark_parameters)
+from _timing import run_parts, table, timed
+
+DATA = external_data(NAME)
+SHORT = {CIRCULAR: "circular", SQUARE: "squares"}
+
+
+def _published_parameters() -> dict[str, WheelParameters]:
+    """OptiOdom's (Sousa et al.) published calibration of each session."""
+    return {r["experiment"].replace("/", "_"): WheelParameters(float(r["Dr_m"]) / 2, float(r["Dl_m"]) / 2,
+                                                               float(r["L_m"]))
+            for r in published() if r["method"] == "Sousa"}
+
+
+def _cells(sessions, params: WheelParameters, calibrated_on: str | None) -> list[str]:
+    out = []
+    for name in (CIRCULAR, SQUARE):
+        e = evaluate(sessions[name], params)
+        mark = "" if calibrated_on is None else (" (in)" if calibrated_on == name else " (held out)")
+        out += [f"{e.max_along:.4f}{mark}", f"{e.max_final:.4f}", f"{e.max_final_heading_deg:.2f}"]
+    return out
+
+
+def calibrations(sessions) -> tuple[str, dict]:
+    sets = {"nominal": (nominal(sessions[CIRCULAR]), None),
+            "UMBmark, squares": (umbmark_parameters(sessions[SQUARE]), SQUARE),
+            "least squares, circular": (least_squares(sessions[CIRCULAR]), CIRCULAR),
+            "least squares, squares": (least_squares(sessions[SQUARE]), SQUARE)}
+    graph = {}
+    for on in (CIRCULAR, SQUARE):
+        (params, sigma, result), seconds = timed(lambda: graph_calibration(sessions[on]))
+        sets[f"fusionkit graph, {SHORT[on]}"] = (params, on)
+        graph[SHORT[on]] = {"sigma": sigma, "seconds": seconds, "states": len(result.problem.states["robot"]),
+                            "chi2_per_dof": result.solution.chi2_per_dof}
+    for name, params in _published_parameters().items():
+        sets[f"OptiOdom published, {SHORT[name]}"] = (params, name)
+    rows, raw = [], {}
+    for label, (params, on) in sets.items():
+        rows.append([label, f"{params.axle_length:.6f}", f"{2 * params.radius_right:.6f}",
+                     f"{2 * params.radius_left:.6f}", *_cells(sessions, params, on)])
+        raw[label] = {"params": params, **{SHORT[n]: evaluate(sessions[n], params) for n in sessions}}
+    head = ["parameters (calibrated on)", "L (m)", "Dr (m)", "Dl (m)", "circ max e_d", "final", "th (deg)",
+            "squares max e_d", "final", "th (deg)"]
+    text = table(head, rows, "OptiOdom recordings: dead reckoning with each parameter set (errors in m, deg)")
+    text += "\n" + "\n".join(
+        f"fusionkit graph, {on}: {g['states']} states, estimate() {g['seconds']:.2f} s, chi2/dof "
+        f"{g['chi2_per_dof']:.2f}; 1-sigma r_R, r_L, A = " + ", ".join(f"{x * 1e3:.3f}" for x in g["sigma"]) + " mm"
+        for on, g in graph.items())
+    raw["graph"] = graph
+    ref = [[f"{r['method']}, {r['experiment']}", r["L_m"], r["Dr_m"], r["Dl_m"], f"{float(r['max_ed_m']):.4f}",
+            f"{float(r['max_final_ed_m']):.4f}", f"{float(r['max_final_th_deg']):.2f}"] for r in published()]
+    text += "\n\n" + table(["published (in-sample)", "L (m)", "Dr (m)", "Dl (m)", "max e_d", "final", "th (deg)"],
+                           ref, "Published figures (reference_results.csv)")
+    return text, raw
+
+
+def segment_lengths(sessions) -> tuple[str, dict]:
+    """The least-squares fit with each run cut into segments of 1, 5 and 20 s instead of whole runs."""
+    rows, raw = [], {}
+    for cycles in (None, 400, 100, 20):
+        label = "whole runs" if cycles is None else f"{cycles / 20:g} s"
+        for on in (CIRCULAR, SQUARE):
+            params = least_squares(sessions[on], cycles)
+            rows.append([f"{label}, {SHORT[on]}", *_cells(sessions, params, on)])
+            raw[(label, SHORT[on])] = params
+    head = ["segments, calibrated on", "circ max e_d", "final", "th (deg)", "squares max e_d", "final", "th (deg)"]
+    return table(head, rows, "Least squares: sensitivity to the segment length"), raw
+
+
+def graph_settings(sessions, quick: bool) -> tuple[str, dict]:
+    """The graph calibration with the wheel noise and the state spacing off their a-priori values."""
+    rows, raw = [], {}
+    sigmas, spacings = ((0.0001, 0.01), (5, 100)) if quick else ((0.0001, 0.0003, 0.003, 0.01), (5, 10, 50, 100))
+    variants = [("wheel_sigma", v) for v in sigmas] + [("state_every", v) for v in spacings]
+    for key, value in [(None, None)] + variants:
+        settings = GRAPH if key is None else {**GRAPH, key: value}
+        label = "a priori" if key is None else f"{key} {value:g}"
+        for on in (CIRCULAR, SQUARE):
+            params, _, result = graph_calibration(sessions[on], settings)
+            rows.append([f"{label}, {SHORT[on]}", f"{result.solution.chi2_per_dof:.3g}",
+                         *_cells(sessions, params, on)])
+            raw[(label, SHORT[on])] = params
+    head = ["settings, calibrated on", "chi2/dof", "circ max e_d", "final", "th (deg)", "squares max e_d", "final",
+            "th (deg)"]
+    title = (f"fusionkit graph: sensitivity to its settings (a priori: wheel_sigma {GRAPH['wheel_sigma']} m/sqrt(s), "
+             f"a state every {GRAPH['state_every']} cycles)")
+    return table(head, rows, title), raw
+
+
+def run(quick: bool) -> dict:
+    if not DATA.is_dir():
+        return {"text": f"(OptiOdom recordings not found at {DATA}: skipped)", "raw": {}}
+    sessions = {name: load_session(name) for name in (CIRCULAR, SQUARE)}
+    return run_parts({"calibrations": lambda: calibrations(sessions),
+                      "segments": lambda: segment_lengths(sessions),
+                      "graph_settings": lambda: graph_settings(sessions, quick)})
+
+
+def summary(results: dict) -> list[str]:
+    if not results["raw"]:
+        return ["wheels (real): OptiOdom recordings not found, skipped"]
+    c = results["raw"]["calibrations"]
+    nom, gsq, gci = c["nominal"], c["fusionkit graph, squares"], c["fusionkit graph, circular"]
+    circ = {k: (v["circular"].max_along, v["circular"].max_final) for k, v in
+            (("nominal", nom), ("in", gci), ("held", gsq))}
+    return ["wheels (real, OptiOdom): circular runs max e_d / max final error: nominal %.4f / %.4f m, fusionkit graph "
+            "calibrated on them %.4f / %.4f m (published OptiOdom 0.0293 / 0.0285 m), on the squares (held out) "
+            "%.4f / %.4f m" % (*circ["nominal"], *circ["in"], *circ["held"])]
+
+
+if __name__ == "__main__":
+    from _timing import section_main
+    section_main(__doc__, run, summary)

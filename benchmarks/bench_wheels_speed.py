@@ -1,0 +1,163 @@
+"""Speed of the wheel factors (docs/models/wheels.md#speed) on wheels.sim figure eights (20 Hz wheel samples,
+no faults), estimated in batch:
+
+  - per step: wheels.encoder for the three wheels, wheels.gyro and wheels.nonholonomic between every two
+    samples (5 Python factors per step), with the camera's poses (pose.absolute, 10 Hz);
+  - preintegrated: wheels.preintegrated between states every 10 samples, with the camera's poses at the
+    states (2 Hz);
+
+each on 10,000 wheel steps (--quick: 2,500), and per step without the camera on 1,200 steps (the
+fault-handling setup of configs/wheels_passive.yaml). Without an absolute reference on 10,000 steps GTSAM's
+Cholesky declares the system indeterminate: the intrinsics the wheels cannot observe (the length scale,
+the heading scale) are held by their priors alone, orders of magnitude weaker than the data on each
+single intrinsic. Baseline, in
+the same process: the same number of Pose2 states chained by native BetweenFactorPose2 (plain odometry with
+known intrinsics), built and solved by gtsam.LevenbergMarquardtOptimizer. Times are fusionkit's pipeline
+stages (`estimate()` timings): read (the simulation itself), build, solve (with marginals); "end to end" is
+the whole estimate() call without the simulation. Then the fixed-lag smoother's per-step latency (update +
+estimate) on 60 s (--quick: 30 s) of each, after a 5 s batch warm-up (the gyro's scale and bias are not yet
+observable in the first seconds).
+
+    python benchmarks/bench_wheels_speed.py [--quick]
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import gtsam
+import numpy as np
+
+from fusionkit.pipeline import estimate
+from fusionkit.simulate import simulated_config
+
+from _timing import table
+
+CAMERA = {"type": "pose.absolute", "robot": "robot", "stream": "camera",
+          "sigma": {"rotation": 0.02, "translation": 0.0028}}
+
+
+def per_step(camera: bool):
+    """The simulator's own config (every wheel, the gyro and no sideways motion at every sample)."""
+    def edit(config: dict) -> None:
+        if camera:
+            config["factors"].append(CAMERA)
+            config["initializers"] = [{"type": "pose.interpolate", "robot": "robot", "stream": "camera"}]
+    return edit
+
+
+def preintegrated(camera: bool):
+    def edit(config: dict) -> None:
+        config["robots"]["robot"]["states"]["every"] = 10
+        config["factors"] = [config["factors"][0],
+                             {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels", "sigma": 2e-4,
+                              "lateral_sigma": 1e-3}] + ([CAMERA] if camera else [])
+        if camera:
+            config["initializers"] = [{"type": "pose.interpolate", "robot": "robot", "stream": "camera"}]
+    return edit
+
+
+VARIANTS = {"per step + camera 10 Hz": (per_step(True), None),
+            "preintegrated (10 steps) + camera 2 Hz": (preintegrated(True), None),
+            "per step, no reference": (per_step(False), 60.0)}
+
+
+def native_chain(n: int) -> dict[str, float]:
+    """n Pose2 states chained by native BetweenFactorPose2 with a prior on the first, from a perturbed start:
+    build and LM solve (hand-written GTSAM)."""
+    rng = np.random.default_rng(0)
+    tic = time.perf_counter()
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([1e-3, 1e-3, 2e-3]))
+    graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(), noise))
+    step = gtsam.Pose2(0.0075, 0.0, 0.01)
+    pose = gtsam.Pose2()
+    values.insert(0, pose)
+    for k in range(1, n):
+        graph.add(gtsam.BetweenFactorPose2(k - 1, k, step, noise))
+        pose = pose.compose(gtsam.Pose2(*(np.array([0.0075, 0.0, 0.01]) + rng.normal(scale=1e-3, size=3))))
+        values.insert(k, pose)
+    build = time.perf_counter() - tic
+    tic = time.perf_counter()
+    gtsam.LevenbergMarquardtOptimizer(graph, values, gtsam.LevenbergMarquardtParams()).optimize()
+    return {"build": build, "solve": time.perf_counter() - tic}
+
+
+def batch(quick: bool) -> tuple[str, dict]:
+    rows, raw = [], {}
+    for name, (edit, seconds) in VARIANTS.items():
+        duration = seconds or (125.0 if quick else 500.0)
+        with simulated_config("wheels.sim", {"duration": duration, "path": "figure_eight"}, seed=0, edit=edit) as config:
+            tic = time.perf_counter()
+            result = estimate(config, keep_rejected=True)
+            total = time.perf_counter() - tic
+        t = result.timings
+        states = len(result.problem.states["robot"])
+        native = native_chain(states)
+        ate = result.evaluation["trajectories"]["robot"]["ate_rmse_m"]
+        raw[name] = {"states": states, "factors": len(result.problem.records), "read": t["read_s"],
+                     "build": t["build_s"], "solve": t["solve_and_marginals_s"], "total": total,
+                     "iterations": result.solution.iterations, "ate_m": ate, "native": native}
+        rows.append([name, int(duration * 20), states, len(result.problem.records), f"{t['read_s']:.2f}", f"{t['build_s']:.2f}",
+                     f"{t['solve_and_marginals_s']:.2f}", result.solution.iterations, f"{total:.2f}",
+                     f"{total - t['read_s']:.2f}", f"{(total - t['read_s']) / (native['build'] + native['solve']):.1f}",
+                     f"{ate:.4f}"])
+    return table(["variant", "steps", "states", "factors", "read (sim) s", "build s", "solve s", "iterations", "total s",
+                  "total - read s", "/ native chain", "ATE m"], rows,
+                 "wheels batch, end to end"), raw
+
+
+def fixed_lag(quick: bool) -> tuple[str, dict]:
+    """Per step: the simulator's config plus the camera, started by dead reckoning; the intrinsics are
+    ~0.04 m, so relinearize below 1e-4. Preintegrated: as in batch. A run the smoother loses is reported
+    as diverged (the per-step variant did on some runs: one GN step per update is not enough for its
+    precise, nonlinear encoder factors)."""
+    from fusionkit.api import SolverError
+    duration = 30.0 if quick else 60.0
+    rows, raw = [], {}
+    for name, edit, settings in (
+            ("per step + camera, 20 Hz", lambda c: c["factors"].append(CAMERA),
+             {"lag": 2.0, "relinearize_threshold": 1e-4}),
+            ("preintegrated + camera, 2 Hz", preintegrated(True), {"lag": 5.0})):
+        def solver(config, edit=edit, settings=settings):
+            edit(config)
+            config["solver"] = {"type": "fixed_lag", "warmup": 5.0, **settings}
+        with simulated_config("wheels.sim", {"duration": duration, "path": "figure_eight"}, seed=0, edit=solver) as config:
+            try:
+                result = estimate(config, keep_rejected=True)
+            except SolverError as exc:
+                raw[name] = {"diverged": str(exc)}
+                rows.append([name, "-", "diverged", "", "", ""])
+                continue
+        latency = result.solution.step_latency * 1e3
+        p50, p99 = float(np.percentile(latency, 50)), float(np.percentile(latency, 99))
+        ate = result.evaluation["trajectories"]["robot"]["ate_rmse_m"]
+        raw[name] = {"steps": len(latency), "p50_ms": p50, "p99_ms": p99, "max_ms": float(latency.max()), "ate_m": ate}
+        rows.append([name, len(latency), f"{p50:.3f}", f"{p99:.3f}", f"{latency.max():.2f}", f"{ate:.4f}"])
+    return table(["variant", "steps", "p50 ms", "p99 ms", "max ms", "ATE m"], rows,
+                 f"wheels fixed-lag (5 s batch warm-up): per-step latency over {duration:.0f} s"), raw
+
+
+def run(quick: bool) -> dict:
+    out = {}
+    for part in (batch, fixed_lag):
+        text, raw = part(quick)
+        print(text + "\n", flush=True)
+        out[part.__name__] = raw
+    return out
+
+
+def summary(results: dict) -> list[str]:
+    lines = []
+    for name, d in results.get("batch", {}).items():
+        lines.append(f"wheels batch {name}: {d['states']} states, {d['total'] - d['read']:.2f} s end to end "
+                     f"(without the simulation), {(d['total'] - d['read']) / (d['native']['build'] + d['native']['solve']):.1f}x "
+                     "a native odometry chain")
+    for name, d in results.get("fixed_lag", {}).items():
+        lines.append(f"wheels fixed-lag {name}: " + ("diverged" if "diverged" in d else f"p99 {d['p99_ms']:.2f} ms per step"))
+    return lines
+
+
+if __name__ == "__main__":
+    run("--quick" in sys.argv)

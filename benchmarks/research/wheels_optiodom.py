@@ -1,0 +1,222 @@
+"""The OptiOdom recordings (../shared/data/diffdrive_optiodom, MIT, Sousa et al. 2022): a real
+differential-drive robot, two wheel encoders at 20 Hz and OptiTrack poses, on circular runs and UMBmark
+squares. No gyro and no passive wheel.
+
+`load_session` reads a session's runs; `write_session` converts them to fusionkit's wheel-stream CSV
+(`t,left,right`: cumulative wheel angles in rad) and a TUM file of the motion-capture poses, and
+`graph_calibration` calibrates the radii and axle length on them with fusionkit (wheels plugin);
+`path_errors` is the reference implementation's error measure (position error along the path and at
+the end, dead reckoning from the true start pose); `least_squares` and `umbmark_parameters` are the
+classic baselines (plugins/wheels/systematic.py). The published figures are in the dataset's
+reference_results.csv.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fusionkit_plugins.wheels.systematic import WheelParameters, fit_radii_and_axle, segments, umbmark
+
+from research.external_data import external_data
+
+NAME = "diffdrive_optiodom"
+CIRCULAR, SQUARE = "circular_231220200121", "square_230620202042"
+CYCLE = 0.05  # s: the odometry cycle (20 Hz)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run: sample times t (s, N + 1), cumulative wheel angles (rad, N + 1, from 0) of the right and
+    left wheel, true poses (N + 1, 3: x, y, theta unwrapped) in the start frame."""
+
+    name: str
+    t: np.ndarray
+    right: np.ndarray
+    left: np.ndarray
+    truth: np.ndarray
+
+
+@dataclass(frozen=True)
+class Session:
+    """A session's runs (the first half clockwise, the second counter-clockwise) and its metadata:
+    nominal axle length and wheel diameters (m), wheel ticks per revolution, square side (m; 0 for the
+    circular runs)."""
+
+    name: str
+    runs: list[Run]
+    axle_length: float
+    diameter_right: float
+    diameter_left: float
+    ticks_per_revolution: float
+    side: float
+
+
+def _metadata(path: Path) -> dict[str, list[str]]:
+    with open(path, newline="") as f:
+        return {row[0]: [v for v in row[1:] if v.strip()] for row in csv.reader(f) if row}
+
+
+def load_session(name: str, folder: Path | None = None) -> Session:
+    """Read session `name` (CIRCULAR or SQUARE) from `folder` (default: the shared data folder)."""
+    folder = Path(folder or external_data(NAME)) / name
+    meta = _metadata(folder / "metadata.csv")
+    ticks_rev = float(meta["ngear"][0]) * float(meta["encRes"][0])
+    runs = []
+    for path in sorted(folder.glob("run-*.csv")):
+        data = np.loadtxt(path, delimiter=",", skiprows=1)
+        t, truth, ticks = data[:, 0], data[:, 1:4], data[:, 4:6]
+        angles = 2.0 * np.pi * np.cumsum(ticks, axis=0) / ticks_rev
+        runs.append(Run(path.stem, t, angles[:, 0], angles[:, 1], truth))
+    side = float(meta["L"][0]) if meta.get("L") else 0.0
+    return Session(name, runs, float(meta["Li"][0]), float(meta["Di"][0]), float(meta["Di"][1]), ticks_rev, side)
+
+
+def write_session(session: Session, folder: Path) -> tuple[Path, Path]:
+    """The session as one recording: `wheels.csv` (t,left,right: cumulative wheel angles, rad) and
+    `mocap.tum` (the true poses, planar, z = 0). Runs follow each other one cycle apart, each run's true
+    path placed at the previous run's final true pose, so the wheels stand still and the truth does not
+    move between runs: every run's relative motion is kept and nothing links two runs."""
+    folder.mkdir(parents=True, exist_ok=True)
+    t, left, right, poses = [], [], [], []
+    t0, angle, base = 0.0, np.zeros(2), np.zeros(3)
+    for run in session.runs:
+        c, s = np.cos(base[2] - run.truth[0, 2]), np.sin(base[2] - run.truth[0, 2])
+        rel = run.truth - run.truth[0]
+        poses.append(np.column_stack([base[0] + c * rel[:, 0] - s * rel[:, 1], base[1] + s * rel[:, 0] + c * rel[:, 1],
+                                      base[2] + rel[:, 2]]))
+        t.append(t0 + run.t - run.t[0])
+        left.append(angle[0] + run.left - run.left[0])
+        right.append(angle[1] + run.right - run.right[0])
+        t0, angle, base = t[-1][-1] + CYCLE, np.array([left[-1][-1], right[-1][-1]]), poses[-1][-1]
+    t, poses = np.concatenate(t), np.concatenate(poses)
+    wheels, mocap = folder / "wheels.csv", folder / "mocap.tum"
+    np.savetxt(wheels, np.column_stack([t, np.concatenate(left), np.concatenate(right)]), delimiter=",",
+               header="t,left,right", comments="", fmt="%.10g")
+    half = 0.5 * poses[:, 2]
+    np.savetxt(mocap, np.column_stack([t, poses[:, :2], np.zeros((len(t), 3)), np.sin(half), np.cos(half)]),
+               fmt="%.10g")
+    return wheels, mocap
+
+
+def dead_reckoning(run: Run, axle_length: float, radius_right: float, radius_left: float) -> np.ndarray:
+    """(N + 1, 3) poses from the true start pose, as the reference implementation integrates them: per
+    cycle ds = (dsR + dsL) / 2, dth = (dsR - dsL) / L, x += ds cos(th + dth / 2), likewise y, th += dth."""
+    ds_r, ds_l = radius_right * np.diff(run.right), radius_left * np.diff(run.left)
+    ds, dth = 0.5 * (ds_r + ds_l), (ds_r - ds_l) / axle_length
+    th = run.truth[0, 2] + np.concatenate([[0.0], np.cumsum(dth)])
+    x = run.truth[0, 0] + np.concatenate([[0.0], np.cumsum(ds * np.cos(th[:-1] + 0.5 * dth))])
+    y = run.truth[0, 1] + np.concatenate([[0.0], np.cumsum(ds * np.sin(th[:-1] + 0.5 * dth))])
+    return np.column_stack([x, y, th])
+
+
+@dataclass(frozen=True)
+class PathErrors:
+    """Over a set of runs: the largest position error along any path (m; the reference's `max e_d`), the
+    largest final position error (m) and final heading error (deg), and the per-run final position errors."""
+
+    max_along: float
+    max_final: float
+    max_final_heading_deg: float
+    final: np.ndarray
+
+
+def path_errors(runs: list[Run], estimates: list[np.ndarray]) -> PathErrors:
+    """The reference implementation's measures (computeEvaluationMeasures.m) of dead-reckoned `estimates`
+    (one (N + 1, 3) array per run) against the runs' truth."""
+    along, final, heading = [], [], []
+    for run, est in zip(runs, estimates):
+        err = run.truth - est
+        dist = np.hypot(err[:, 0], err[:, 1])
+        along.append(dist.max())
+        final.append(dist[-1])
+        heading.append(abs(np.degrees(np.angle(np.exp(1j * err[-1, 2])))))
+    return PathErrors(max(along), max(final), max(heading), np.array(final))
+
+
+def final_errors(runs: list[Run], estimates: list[np.ndarray]) -> np.ndarray:
+    """(n, 2) final position errors, truth minus dead reckoning (m): UMBmark's input."""
+    return np.array([run.truth[-1, :2] - est[-1, :2] for run, est in zip(runs, estimates)])
+
+
+def nominal(session: Session) -> WheelParameters:
+    return WheelParameters(session.diameter_right / 2, session.diameter_left / 2, session.axle_length)
+
+
+def evaluate(session: Session, params: WheelParameters) -> PathErrors:
+    """The reference measures of dead reckoning with `params` over all runs of `session`."""
+    return path_errors(session.runs, [dead_reckoning(r, params.axle_length, params.radius_right, params.radius_left)
+                                      for r in session.runs])
+
+
+def least_squares(session: Session, length: int | None = None) -> WheelParameters:
+    """Two-stage least squares (plugins/wheels/systematic.py) on the session's runs, each run one segment
+    (Antonelli et al.'s experiments), or cut into segments of `length` cycles."""
+    segs = []
+    for r in session.runs:
+        n = len(r.t) - 1
+        segs += segments(np.diff(r.right), np.diff(r.left), r.truth, min(length or n, n))
+    return fit_radii_and_axle(segs)
+
+
+def umbmark_parameters(session: Session) -> WheelParameters:
+    """UMBmark on a square session (runs: first half clockwise, then counter-clockwise), from the
+    return errors of dead reckoning with the nominal parameters."""
+    base = nominal(session)
+    ends = final_errors(session.runs, [dead_reckoning(r, base.axle_length, base.radius_right, base.radius_left)
+                                       for r in session.runs])
+    half = len(session.runs) // 2
+    u = umbmark(ends[:half], ends[half:], session.side, session.axle_length, session.diameter_right,
+                session.diameter_left)
+    return WheelParameters(u.diameter_right / 2, u.diameter_left / 2, u.axle_length)
+
+
+def published(folder: Path | None = None) -> list[dict]:
+    """reference_results.csv: one dict per (method, experiment) with the published parameters and measures."""
+    with open(Path(folder or external_data(NAME)) / "reference_results.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+# The graph calibration's settings, fixed before looking at the results: motion capture (OptiTrack:
+# about 1 mm and 0.01 rad per pose), wheel travel noise 1 mm/sqrt(s) (ten times the encoder quantization
+# of 0.17 mm/sqrt(s) at 20 Hz: slip and floor unevenness), no sideways slip beyond that.
+GRAPH = {"state_every": 20, "wheel_sigma": 0.001, "mocap": {"rotation": 0.01, "translation": 0.001}}
+
+
+def graph_config(wheels: Path, mocap: Path, settings: dict = GRAPH) -> dict:
+    """A fusionkit config calibrating optiodom_robot's radii and axle length: states every
+    `state_every` cycles, the driven wheels preintegrated between them, the motion-capture poses at them."""
+    return {"name": "optiodom_calibration",
+            "robots": {"robot": {"description": "optiodom_robot",
+                                 "states": {"stream": "wheels", "every": settings["state_every"], "type": "pose2"}}},
+            "sources": [{"type": "csv", "name": "wheels", "path": str(wheels)},
+                        {"type": "tum", "name": "mocap", "path": str(mocap)}],
+            "factors": [{"type": "pose.absolute", "robot": "robot", "stream": "mocap", "sigma": settings["mocap"]},
+                        {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels",
+                         "sigma": settings["wheel_sigma"]}],
+            "initializers": [{"type": "pose.interpolate", "robot": "robot", "stream": "mocap"}],
+            "solver": {"type": "batch", "method": "lm"}, "output": {"plots": False}}
+
+
+def graph_calibration(session: Session, settings: dict = GRAPH):
+    """(WheelParameters, their 1-sigma (r_R, r_L, A), the fusionkit RunResult) of the graph calibration
+    on all runs of `session`."""
+    import tempfile
+
+    import yaml
+
+    from fusionkit import run as fusionkit_run
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        wheels, mocap = write_session(session, folder)
+        path = folder / "config.yaml"
+        path.write_text(yaml.safe_dump(graph_config(wheels, mocap, settings), sort_keys=False))
+        result = fusionkit_run(path)
+    est = result.parameters["robot"]
+    names = ("wheel_radius_right", "wheel_radius_left", "axle_length")
+    values = [float(est[n].values[0]) for n in names]
+    sigma = [float(est[n].sigma[0][0]) if est[n].sigma is not None else float("nan") for n in names]
+    return WheelParameters(*values), sigma, result

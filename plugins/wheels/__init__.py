@@ -1,0 +1,36 @@
+"""Built-in `wheels` plugin: differential-drive robots with wheel encoders, an optional passive wheel and a
+gyro -- the diff_drive robot model, per-wheel, gyro, no-sideways-motion and preintegrated odometry factors,
+dead-reckoning initialization and the wheels.sim fault simulator (models: docs/models/wheels.md)."""
+
+from fusionkit.api import hookimpl, robot_description_files
+
+from .baseline import BASELINES
+from .factors import FACTOR_TYPES
+from .initializers import INITIALIZERS
+from .model import DiffDriveModel
+from .simulator import SIMULATORS
+
+
+@hookimpl
+def register_factor_types():
+    return FACTOR_TYPES + BASELINES
+
+
+@hookimpl
+def register_initializers():
+    return INITIALIZERS
+
+
+@hookimpl
+def register_robot_models():
+    return [DiffDriveModel]
+
+
+@hookimpl
+def register_simulators():
+    return SIMULATORS
+
+
+@hookimpl
+def register_robot_descriptions():
+    return robot_description_files(__name__)

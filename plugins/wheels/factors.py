@@ -1,0 +1,358 @@
+"""Factor types of a differential drive (docs/models/wheels.md#factors): per state interval, one factor
+per wheel encoder (`wheels.encoder`), the gyro (`wheels.gyro`) and the no-sideways-motion constraint
+(`wheels.nonholonomic`); or the driven wheels preintegrated over the interval between sparser states
+(`wheels.preintegrated`). States are Pose2 (the axle midpoint); intrinsics are the diff_drive
+description's parameters, read at the interval's first state (time-varying ones too)."""
+
+from __future__ import annotations
+
+from functools import partial
+
+import gtsam
+import numpy as np
+
+from fusionkit.api import FactorExample, FactorType, Spec, gaussian
+
+from .kinematics import gyro_increments, increments, inside, wheel_angles
+from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
+from .preintegration import preintegrate, preintegrated_residual
+from .residuals import encoder_residual, gyro_residual, lateral_residual, over_read
+
+NAME = {"type": "string"}
+SIGMA = {"type": "number", "exclusiveMinimum": 0}
+EVERY = {"type": "integer", "minimum": 1, "default": 1}
+
+
+def _xyt(values: gtsam.Values, key: int) -> tuple[float, float, float]:
+    p = values.atPose2(key)
+    return p.x(), p.y(), p.theta()
+
+
+def check_drive_entry(spec: Spec, scope):
+    """A diff_drive robot with Pose2 states; returns its description."""
+    desc = scope.require_model(spec, "robot", "diff_drive")
+    scope.require_states(spec, "robot", "pose2")
+    return desc
+
+
+def intervals(ctx, spec: Spec, stream=None) -> np.ndarray:
+    """Indices k of the states whose interval (k-1, k) lies inside the stream (every interval without one);
+    the intervals left out are counted in the report."""
+    states = ctx.state_set(spec["robot"], spec)
+    ks = np.arange(1, len(states))
+    if stream is None:
+        return ks
+    ok = inside(stream.t, states.t)
+    kept = ks[ok[ks - 1] & ok[ks]]
+    if len(kept) < len(ks):
+        ctx.notes.append(f"{spec.label}: {len(ks) - len(kept)} of {len(ks)} state intervals of {spec['robot']!r} lie "
+                         f"outside stream {stream.name!r} and get no factor from it")
+    return kept
+
+
+def parameter_key(ctx, spec: Spec, name: str, k: int) -> int:
+    """Key of an intrinsic for the interval that starts at state k: a time-varying parameter is read at the
+    last multiple of `parameter_every` (parameter.random_walk's `every`) at or before k."""
+    every = spec["parameter_every"]
+    return ctx.parameter(spec["robot"], name, k=k - k % every)
+
+
+class Noises:
+    """sigma * sqrt(dt) noise models of an entry, one per distinct interval length."""
+
+    def __init__(self, ctx, spec: Spec, sigma: float):
+        self.ctx, self.spec, self.sigma, self.made = ctx, spec, sigma, {}
+
+    def __call__(self, dt: float) -> tuple[gtsam.noiseModel.Base, float]:
+        step = round(float(dt), 9)
+        if step not in self.made:
+            s = self.sigma * np.sqrt(step)
+            self.made[step] = (self.ctx.noise([s], self.spec), s)
+        return self.made[step]
+
+
+# --- wheels.encoder -------------------------------------------------------------------------------
+
+def _encoder_error(side: float, angle: float, sigma: float, k: float | None, direction: int, this, values, H):
+    """Keys: pose a, pose b, the wheel's radius, then (when the wheel's lateral position is a variable)
+    the axle length (side = +-1/2) or the passive offset (side = 1). With `k`, over-runs in `direction`
+    (residuals.over_read) are down-weighted."""
+    keys = this.keys()
+    lateral = side * values.atDouble(keys[3]) if len(keys) > 3 else 0.0
+    e, J = encoder_residual(_xyt(values, keys[0]), _xyt(values, keys[1]), values.atDouble(keys[2]), lateral, angle,
+                            H is not None)
+    weight = 1.0
+    if k is not None:
+        e, weight = over_read(e, sigma, direction, k)
+    if H is not None:
+        H[0], H[1], H[2] = weight * J[0], weight * J[1], weight * J[2]
+        if len(keys) > 3:
+            H[3] = (weight * side) * J[3]
+    return np.array([e])
+
+
+def encoder_factor(keys: list[int], side: float, angle: float, noise, sigma: float,
+                   over_read_k: float | None = None, direction: int = 0) -> gtsam.CustomFactor:
+    return gtsam.CustomFactor(noise, keys, partial(_encoder_error, side, float(angle), sigma, over_read_k, direction))
+
+
+def turn_direction(angle: float, sigma: float) -> int:
+    """The sign of a wheel's turn (rad) when it exceeds 3 sigma, else 0 (a wheel at rest, up to noise, cannot
+    over-run)."""
+    return int(np.sign(angle)) if abs(angle) > 3.0 * sigma else 0
+
+
+class Encoder(FactorType):
+    name = "wheels.encoder"
+    summary = ("wheel encoders, one factor per wheel and state interval: angle increment = the wheel's forward "
+               "travel / its radius (diff_drive; optionally down-weights readings that over-run the motion)")
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA,
+                             "wheels": {"type": "array", "items": {"enum": ["left", "right", "passive"]},
+                                        "minItems": 1, "uniqueItems": True},
+                             "over_read": SIGMA, "parameter_every": EVERY},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        """`wheels` (default: every wheel the robot has) are wheels of the robot and columns of the stream."""
+        drive = drive_of(check_drive_entry(spec, scope))
+        wheels = spec["wheels"] if "wheels" in spec.data else list(drive.wheels)
+        if "passive" in wheels and not drive.has_passive:
+            raise spec.error("wheels", f"robot {spec['robot']!r} has no passive wheel (no parameter 'passive_radius')")
+        scope.require_columns(spec, "stream", tuple(wheels))
+
+    def build(self, ctx, spec: Spec) -> None:
+        """sigma: rad/sqrt(s) of a wheel's angle; a factor's sigma is sigma * sqrt(dt)."""
+        robot = spec["robot"]
+        drive = drive_of(ctx.robot(robot))
+        stream = ctx.stream(spec["stream"])
+        states = ctx.state_set(robot, spec)
+        ks = intervals(ctx, spec, stream)
+        noises = Noises(ctx, spec, spec["sigma"])
+        dts = states.t[ks] - states.t[ks - 1]
+        pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
+        for wheel in (spec["wheels"] if "wheels" in spec.data else drive.wheels):
+            angles = increments(stream.t, wheel_angles(stream.column(wheel), drive.ticks[wheel]), states.t)[ks - 1]
+            lateral = {"left": (AXLE, 0.5), "right": (AXLE, -0.5)}.get(wheel, (PASSIVE_OFFSET, 1.0))
+            has_lateral = lateral[0] in ctx.robot(robot).parameters
+            for i, (k, angle, dt) in enumerate(zip(ks.tolist(), angles.tolist(), dts.tolist())):
+                keys = pose_keys[2 * i:2 * i + 2] + [parameter_key(ctx, spec, RADIUS[wheel], k - 1)]
+                if has_lateral:
+                    keys.append(parameter_key(ctx, spec, lateral[0], k - 1))
+                noise, sigma = noises(dt)
+                ctx.add(encoder_factor(keys, lateral[1], angle, noise, sigma, spec.get("over_read"),
+                                       turn_direction(angle, sigma)), spec, float(states.t[k]))
+
+    @classmethod
+    def example(cls, rng):
+        """A random motion, radius, axle (or offset), and the angle that makes the residual zero; half the
+        examples with the over-read loss (perturbed values fall on either of its branches)."""
+        a = rng.normal(scale=[1.0, 1.0, 2.0])
+        b = a + rng.normal(scale=[0.05, 0.05, 0.3])
+        radius, length = rng.uniform(0.05, 0.1), rng.uniform(0.1, 0.6)
+        side = rng.choice([0.5, -0.5, 1.0])
+        angle, _ = encoder_residual(a, b, radius, side * length, 0.0)
+        values = gtsam.Values()
+        for key, v in enumerate((gtsam.Pose2(*a), gtsam.Pose2(*b), radius, length)):
+            values.insert(key, v)
+        factor = encoder_factor([0, 1, 2, 3], side, angle, gaussian([0.02]), 0.02,
+                                1.0 if rng.uniform() < 0.5 else None, int(np.sign(angle)))
+        return FactorExample(factor, values, perturbation=0.01)  # the radius stays well above 0
+
+
+# --- wheels.gyro ----------------------------------------------------------------------------------
+
+def _gyro_error(integral: float, dt: float, this, values, H):
+    keys = this.keys()
+    e, J = gyro_residual(_xyt(values, keys[0]), _xyt(values, keys[1]), values.atDouble(keys[2]),
+                         values.atDouble(keys[3]), integral, dt, H is not None)
+    if H is not None:
+        H[0], H[1], H[2], H[3] = J
+    return np.array([e])
+
+
+def gyro_factor(keys: list[int], integral: float, dt: float, noise) -> gtsam.CustomFactor:
+    return gtsam.CustomFactor(noise, keys, partial(_gyro_error, float(integral), float(dt)))
+
+
+class Gyro(FactorType):
+    name = "wheels.gyro"
+    summary = ("z gyro per state interval: heading change = gyro_scale * integrated reading + gyro_bias * dt "
+               "(diff_drive; the bias may drift: parameter.random_walk)")
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "parameter_every": EVERY},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        if not drive_of(check_drive_entry(spec, scope)).has_gyro:
+            raise spec.error("robot", f"robot {spec['robot']!r} has no gyro: its description needs parameters "
+                             f"{GYRO_SCALE!r} and {GYRO_BIAS!r}")
+        scope.require_columns(spec, "stream", ("gyro",))
+
+    def build(self, ctx, spec: Spec) -> None:
+        """sigma: rad/sqrt(s) of the integrated reading (angle random walk in the gyro's own units); a
+        factor's sigma is sigma * sqrt(dt)."""
+        robot = spec["robot"]
+        stream = ctx.stream(spec["stream"])
+        states = ctx.state_set(robot, spec)
+        ks = intervals(ctx, spec, stream)
+        integrals = gyro_increments(stream.t, stream.column("gyro"), states.t)[ks - 1]
+        dts = states.t[ks] - states.t[ks - 1]
+        pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
+        noises = Noises(ctx, spec, spec["sigma"])
+        for i, (k, integral, dt) in enumerate(zip(ks.tolist(), integrals.tolist(), dts.tolist())):
+            keys = pose_keys[2 * i:2 * i + 2] + [parameter_key(ctx, spec, GYRO_SCALE, k - 1),
+                                                 parameter_key(ctx, spec, GYRO_BIAS, k - 1)]
+            ctx.add(gyro_factor(keys, integral, dt, noises(dt)[0]), spec, float(states.t[k]))
+
+    @classmethod
+    def example(cls, rng):
+        a = rng.normal(scale=[1.0, 1.0, 2.0])
+        b = a + rng.normal(scale=[0.05, 0.05, 0.3])
+        scale, bias, dt = rng.uniform(0.7, 1.4), rng.normal(scale=0.05), rng.uniform(0.01, 0.2)
+        integral = gyro_residual(a, b, scale, bias, 0.0, dt)[0]
+        values = gtsam.Values()
+        for key, v in enumerate((gtsam.Pose2(*a), gtsam.Pose2(*b), scale, bias)):
+            values.insert(key, v)
+        return FactorExample(gyro_factor([0, 1, 2, 3], integral, dt, gaussian([0.003])), values)
+
+
+# --- wheels.nonholonomic ----------------------------------------------------------------------------
+
+def _lateral_error(this, values, H):
+    keys = this.keys()
+    e, J = lateral_residual(_xyt(values, keys[0]), _xyt(values, keys[1]), H is not None)
+    if H is not None:
+        H[0], H[1] = J
+    return np.array([e])
+
+
+def lateral_factor(keys: list[int], noise) -> gtsam.CustomFactor:
+    return gtsam.CustomFactor(noise, keys, _lateral_error)
+
+
+class Nonholonomic(FactorType):
+    name = "wheels.nonholonomic"
+    summary = ("no sideways motion of the axle midpoint between consecutive states: the lateral component of "
+               "Log(X_k-1^-1 X_k) is zero (Pose2 states)")
+    robot_fields = ("robot",)
+    schema = {"type": "object", "properties": {"robot": NAME, "sigma": SIGMA},
+              "required": ["robot", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot", "pose2")
+
+    def build(self, ctx, spec: Spec) -> None:
+        """sigma: m/sqrt(s) of sideways slip; a factor's sigma is sigma * sqrt(dt)."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        ks = intervals(ctx, spec)
+        pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
+        noises = Noises(ctx, spec, spec["sigma"])
+        for i, (k, dt) in enumerate(zip(ks.tolist(), (states.t[ks] - states.t[ks - 1]).tolist())):
+            ctx.add(lateral_factor(pose_keys[2 * i:2 * i + 2], noises(dt)[0]), spec, float(states.t[k]))
+
+    @classmethod
+    def example(cls, rng):
+        a = gtsam.Pose2(*rng.normal(scale=[1.0, 1.0, 2.0]))
+        b = a.compose(gtsam.Pose2.Expmap(np.array([rng.normal(scale=0.1), 0.0, rng.normal(scale=0.5)])))
+        values = gtsam.Values()
+        values.insert(0, a)
+        values.insert(1, b)
+        return FactorExample(lateral_factor([0, 1], gaussian([0.001])), values)
+
+
+# --- wheels.preintegrated ---------------------------------------------------------------------------
+
+def _preintegrated_error(delta: gtsam.Pose2, jacobian: np.ndarray, nominal: np.ndarray, whiten: np.ndarray,
+                         this, values, H):
+    keys = this.keys()
+    theta = np.array([values.atDouble(keys[2]), values.atDouble(keys[3]), values.atDouble(keys[4])])
+    e, J = preintegrated_residual(values.atPose2(keys[0]), values.atPose2(keys[1]), theta, delta, jacobian, nominal,
+                                  whiten, H is not None)
+    if H is not None:
+        for i, block in enumerate(J):
+            H[i] = block
+    return e
+
+
+def preintegrated_factor(keys: list[int], delta, jacobian, nominal, covariance, noise) -> gtsam.CustomFactor:
+    """Keys: pose i, pose j, r_L, r_R, A. The residual is whitened by the window's covariance (its unit: sigmas)."""
+    whiten = np.linalg.inv(np.linalg.cholesky(covariance))
+    return gtsam.CustomFactor(noise, keys, partial(_preintegrated_error, gtsam.Pose2(*delta), np.asarray(jacobian),
+                                                   np.asarray(nominal, float), whiten))
+
+
+def sample_windows(stream_t: np.ndarray, state_t: np.ndarray, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sample boundaries of every interval (k-1, k): its two state times and the stream stamps inside;
+    returns (boundaries, the interval each sub-interval belongs to (index into ks), -1 if none)."""
+    lo, hi = state_t[ks[0] - 1], state_t[ks[-1]]
+    bounds = np.union1d(state_t[ks[0] - 1:ks[-1] + 1], stream_t[(stream_t > lo) & (stream_t < hi)])
+    start_state = np.searchsorted(state_t, bounds[:-1], side="right") - 1
+    lookup = np.full(len(state_t), -1)
+    lookup[ks - 1] = np.arange(len(ks))
+    return bounds, lookup[start_state]
+
+
+class Preintegrated(FactorType):
+    name = "wheels.preintegrated"
+    summary = ("driven-wheel odometry preintegrated between consecutive states, with its Jacobian in the wheel "
+               "radii and axle length (drifting intrinsics; diff_drive)")
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "lateral_sigma": SIGMA,
+                             "parameter_every": EVERY},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        check_drive_entry(spec, scope)
+        scope.require_columns(spec, "stream", ("left", "right"))
+
+    def build(self, ctx, spec: Spec) -> None:
+        """sigma: m/sqrt(s) of each wheel's travel; lateral_sigma: m/sqrt(s) of sideways slip (absent:
+        sigma). Preintegrated at the description's nominal intrinsics."""
+        robot = spec["robot"]
+        drive = drive_of(ctx.robot(robot))
+        stream = ctx.stream(spec["stream"])
+        states = ctx.state_set(robot, spec)
+        ks = intervals(ctx, spec, stream)
+        if len(ks) == 0:
+            return
+        bounds, window = sample_windows(stream.t, states.t, ks)
+        used = window >= 0
+        left, right = (increments(stream.t, wheel_angles(stream.column(w), drive.ticks[w]), bounds)[used]
+                       for w in ("left", "right"))
+        nominal = [drive.nominal[n] for n in (RADIUS_LEFT, RADIUS_RIGHT, AXLE)]
+        pre = preintegrate(window[used], left, right, np.diff(bounds)[used], nominal, spec["sigma"],
+                           spec.get("lateral_sigma", spec["sigma"]))
+        noise = ctx.noise([1.0, 1.0, 1.0], spec)
+        pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
+        for i, k in enumerate(ks.tolist()):
+            keys = pose_keys[2 * i:2 * i + 2] + [parameter_key(ctx, spec, n, k - 1)
+                                                 for n in (RADIUS_LEFT, RADIUS_RIGHT, AXLE)]
+            ctx.add(preintegrated_factor(keys, pre.delta[i], pre.jacobian[i], pre.nominal, pre.covariance[i], noise),
+                    spec, float(states.t[k]))
+
+    @classmethod
+    def example(cls, rng):
+        """Ten samples of random wheel increments; intrinsics away from the preintegration point."""
+        nominal = np.array([rng.uniform(0.03, 0.06), rng.uniform(0.03, 0.06), rng.uniform(0.2, 0.4)])
+        theta = nominal * rng.uniform(0.97, 1.03, 3)
+        left, right = rng.uniform(-0.5, 2.0, 10), rng.uniform(-0.5, 2.0, 10)
+        window = np.zeros(10, dtype=int)
+        pre = preintegrate(window, left, right, np.full(10, 0.05), nominal, 0.002, 0.001)
+        xi = gtsam.Pose2(*rng.normal(scale=[1.0, 1.0, 2.0]))
+        delta = gtsam.Pose2(*pre.delta[0]).compose(gtsam.Pose2.Expmap(pre.jacobian[0] @ (theta - nominal)))
+        values = gtsam.Values()
+        for key, v in enumerate((xi, xi.compose(delta), *theta.tolist())):
+            values.insert(key, v)
+        return FactorExample(preintegrated_factor([0, 1, 2, 3, 4], pre.delta[0], pre.jacobian[0], pre.nominal,
+                                                  pre.covariance[0], gaussian([1.0] * 3)), values, perturbation=0.02)
+
+
+FACTOR_TYPES = [Encoder, Gyro, Nonholonomic, Preintegrated]
