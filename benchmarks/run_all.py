@@ -11,6 +11,9 @@ uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings,
 serial_arm (real UR10 leave-one-out against FIGAROH, scipy side by side, 7-DoF speed, drift, simulation table),
 wheels_real (wheel calibration on the OptiOdom recordings: UMBmark, least squares, the graph, held out),
 wheels_speed (10,000 wheel steps in batch, per step and preintegrated; fixed-lag latency),
+wheels_sim (the wheel graph against the rule-based odometers over 50 simulated runs per fault class),
+time_offset (clock offsets estimated in the graph: lagging cable encoders held out, z-scores, UWB, cost),
+epuck (IR localization in a known arena against dead reckoning, ablations, single scans, fitting tools, fixed-lag speed),
 busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.
 """
@@ -31,8 +34,8 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real", "wheels_speed",
-            "busy_core")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real", "wheels_speed", "wheels_sim",
+            "time_offset", "epuck", "busy_core")
 
 
 def _git(*args: str) -> str:
@@ -107,6 +110,15 @@ def summary(results: dict) -> str:
     if "wheels_speed" in results:
         import bench_wheels_speed
         lines += bench_wheels_speed.summary(results["wheels_speed"])
+    if "wheels_sim" in results:
+        import bench_wheels_sim
+        lines += bench_wheels_sim.summary(results["wheels_sim"])
+    if "time_offset" in results:
+        import bench_time_offset
+        lines += bench_time_offset.summary(results["time_offset"])
+    if "epuck" in results:
+        import bench_epuck
+        lines += bench_epuck.summary(results["epuck"])
     if "busy_core" in results:
         import bench_busy_core
         lines += bench_busy_core.summary(results["busy_core"])
@@ -127,16 +139,20 @@ def main(argv=None) -> int:
     import bench_busy_core
     import bench_cable_rigid
     import bench_cable_sag
+    import bench_epuck
     import bench_factors
     import bench_isam2
     import bench_scaled_vo
     import bench_serial_arm
+    import bench_time_offset
     import bench_uwb
     import bench_wheels_real
+    import bench_wheels_sim
     import bench_wheels_speed
     modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
                "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb,
-               "serial_arm": bench_serial_arm, "wheels_real": bench_wheels_real, "wheels_speed": bench_wheels_speed, "busy_core": bench_busy_core}
+               "serial_arm": bench_serial_arm, "wheels_real": bench_wheels_real, "wheels_speed": bench_wheels_speed, "wheels_sim": bench_wheels_sim, "time_offset": bench_time_offset,
+               "epuck": bench_epuck, "busy_core": bench_busy_core}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()

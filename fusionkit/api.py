@@ -29,9 +29,10 @@ from .report.writer import check_output_folder, write_output_folder
 from .models.simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
 from .testing import FactorExample
 
-API_VERSION = "1.2"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.3"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
+# 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index
 
 __all__ = [
     "API_VERSION", "hookimpl",

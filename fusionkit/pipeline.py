@@ -120,7 +120,8 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
 
 
 def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progress | None = None) -> Problem:
-    """Every factor entry builds its factors, then initializers run in config order."""
+    """Every factor entry builds its factors, then initializers run in config order; then the factors of entries
+    with a time offset are shifted to their samples' times (at the offset's initial value)."""
     reg = registry()
     ctx = BuildContext(config, streams)
     ctx.notes.extend(note for stream in streams.values() for note in stream.notes)
@@ -131,6 +132,7 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
         _stage(progress, f"initializing: {spec.label}")
         ctx.current_initializer = spec.label
         reg.get("initializers", spec.type)().initialize(ctx, spec)
+    ctx.measurement_states.finish()
     ctx.require_values()
     for spec in config.factors:
         _stage(progress, f"diagnosing {spec.label}")
@@ -280,6 +282,8 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     else:
         solution = solve(problem, config.solver, marginal_keys, progress)
     timings["solve_and_marginals_s"] = time.perf_counter() - tic
+    if problem.measurement_states is not None:  # time offsets whose estimate left their samples' windows
+        problem.notes.extend(problem.measurement_states.beyond_windows(solution.values))
     timings["solve_s"] = solution.seconds
     _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)

@@ -23,6 +23,7 @@ BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not t
 DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
     "fusionkit.robots.generic",
+    "fusionkit.time_offset.guess",
 )
 OWN_DISTRIBUTION = "fusionkit"  # its entry-point plugins load first: a third-party name clash loses
 

@@ -267,7 +267,7 @@ def parser(plugin_commands: list[type] = ()) -> argparse.ArgumentParser:
                      help="override a scenario parameter, e.g. duration=10")
     for cls in plugin_commands:
         command = cls()
-        cmd = sub.add_parser(cls.name, parents=common, help=cls.summary, description=cls.summary)
+        cmd = sub.add_parser(cls.name, parents=common, help=cls.summary.replace("%", "%%"), description=cls.summary)
         command.add_arguments(cmd)
         cmd.set_defaults(plugin_command=command)
     return p

@@ -16,9 +16,10 @@ from .defaults import with_defaults
 from .overrides import apply_override, new_key_note, parse_key_path
 from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against
 from .yamlio import Document, load_yaml
+from ..time_offset.config import KEY as TIME_OFFSET, SCHEMA as TIME_OFFSET_SCHEMA, check_time_offset
 
 COMMON_ENTRY_KEYS = {"type", "label"}
-FACTOR_KEYS = {"robust": ROBUST_SCHEMA}  # keys every factor entry accepts besides its type's own
+FACTOR_KEYS = {"robust": ROBUST_SCHEMA, TIME_OFFSET: TIME_OFFSET_SCHEMA}  # every factor entry's, besides its type's
 
 
 @dataclass
@@ -219,6 +220,8 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
         _check_references(specs, objs, robots, streams)
         for spec, obj in zip(specs, objs):
             obj.check(spec, scope)
+            if specs is factors:
+                check_time_offset(spec, type(obj), scope)
     solver = solver_settings(dict(doc.data.get("solver") or {}))
     refined = _refined_factors(doc, solver, factors, factor_objs, scope)
 
@@ -272,5 +275,6 @@ def _refined_factors(doc: Document, solver: dict, factors: list[Spec], objs: lis
         validate_against(doc, schema, merged.data, path + (spec["label"],))
         merged.data = with_defaults(schema, merged.data)
         obj.check(merged, scope)
+        check_time_offset(merged, type(obj), scope)
         refined.append(merged)
     return refined

@@ -15,6 +15,8 @@ from ..data.association import Association, nearest
 from ..data.stream import Stream
 from ..errors import PluginError
 from ..robots.description import Parameter, RobotDescription
+from ..time_offset.config import TimeOffset
+from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, with_kernel
 from .variables import VarType, vartype_named
@@ -73,6 +75,7 @@ class Problem:
     plots: dict[str, Callable[[Path], None]] = field(default_factory=dict)
     fixed_keys: set[int] = field(default_factory=set)  # `fixed: true` parameters: held, not estimated
     value_source: dict[str, str] = field(default_factory=dict)  # value-less parameter -> its initializer
+    measurement_states: MeasurementStates | None = None  # entries with a time offset (time_offset/)
     _graph: gtsam.NonlinearFactorGraph | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
@@ -103,6 +106,7 @@ class BuildContext:
         self.awaiting_value: dict[int, list[str]] = {}  # [robot, parameter] the description gives no value
         self.value_source: dict[str, str] = {}  # such a parameter's name -> the initializer that set it
         self.current_initializer = ""
+        self.measurement_states = MeasurementStates(self)
         for name, setup in config.robots.items():
             if setup.states:
                 vt = vartype_named(setup.states["type"])
@@ -123,7 +127,13 @@ class BuildContext:
         return self.states[robot]
 
     def state_time(self, robot: str, k: int) -> float:
-        return float(self.states[robot].t[k])
+        """Time (s) of state k; of a measurement-time state (an entry with a time offset): its pair's later state."""
+        t = self.states[robot].t
+        return float(t[k] if k < len(t) else t[self.measurement_states.get(robot, k).upper])
+
+    def state_index(self, robot: str, k: int) -> int:
+        """The robot's state k stands for: k itself, or for a measurement-time state the state nearest to it."""
+        return k if k < len(self.states[robot].t) else self.measurement_states.get(robot, k).nearest
 
     # --- variables ---------------------------------------------------------------------------
     @property
@@ -141,7 +151,10 @@ class BuildContext:
         return key in self.key_time
 
     def initial_value(self, key: int) -> Any:
-        """The current initial value of declared variable `key` (as its type reads from gtsam.Values)."""
+        """The current initial value of declared variable `key` (as its type reads from gtsam.Values); of a
+        measurement-time key: the state at its time, interpolated between the states' initial values."""
+        if key in self.measurement_states.by_key:
+            return self.measurement_states.initial_value(key)
         if key in self._pending:
             self._values.insert(key, self._pending.pop(key))
         return self.keys.decode(key)[0].vartype.read(self._values, key)
@@ -153,7 +166,8 @@ class BuildContext:
         return key
 
     def state_variable(self, robot: str, family: str, vartype: VarType, k: int, initial: Any = None) -> int:
-        """A per-state variable of another family (velocity, bias, joints) at state k."""
+        """A per-state variable of another family (velocity, bias, joints) at state k (state_index(robot, k))."""
+        k = self.state_index(robot, k)
         key = self.keys.family(robot, family, vartype, STATE).key(k)
         if key not in self.key_time:
             self._declare(key, vartype.zero() if initial is None else initial, self.state_time(robot, k))
@@ -161,8 +175,11 @@ class BuildContext:
 
     def state_key(self, robot: str, k: int) -> int:
         """The robot's state variable at state k (its `states:` type and family; declared with the
-        type's zero -- identity pose, zero vector -- until initialized)."""
+        type's zero -- identity pose, zero vector -- until initialized). k past the states: the key of a
+        measurement-time state (from `associate` on an entry with a time offset; not a variable)."""
         s = self.states[robot]
+        if k >= len(s.t):
+            return self.measurement_states.key(robot, k)
         key = s.family.key(k)
         if key not in self.key_time:
             self._declare(key, s.family.vartype.zero(), float(s.t[k]))
@@ -171,6 +188,8 @@ class BuildContext:
     def state_keys(self, robot: str, ks) -> list[int]:
         """state_key for many states at once: the keys of the robot's states ks (in that order)."""
         s = self.states[robot]
+        if len(ks) and np.max(ks) >= len(s.t):
+            return [self.state_key(robot, int(k)) for k in ks]
         keys = s.family.keys(ks)
         new = list(dict.fromkeys(key for key in keys if key not in self.key_time))
         if new:  # declared as in state_key; one zero value serves them all (Values copies it)
@@ -186,8 +205,8 @@ class BuildContext:
     def parameter(self, robot: str, name: str, index: int | None = None, k: int | None = None) -> int:
         """Key of a calibration parameter from the robot description (element `index`).
 
-        Static parameters are one variable; time-varying ones are one per state `k`, chained by
-        a `parameter.random_walk` factor. The description's prior is added once (time-varying:
+        Static parameters are one variable; time-varying ones are one per state `k` (state_index(robot, k)),
+        chained by a `parameter.random_walk` factor. The description's prior is added once (time-varying:
         on the first state only).
         """
         param = self.robot(robot).parameters[name]
@@ -195,6 +214,7 @@ class BuildContext:
         if param.time_varying:
             if k is None:
                 raise ValueError(f"{robot}/{name} is time-varying: pass the state index k")
+            k = self.state_index(robot, k)
             fam = self.keys.family(robot, name if not param.indexed else f"{name}[{i}]",
                                    param.vartype, TIME_VARYING)
             key = fam.key(k)
@@ -270,7 +290,12 @@ class BuildContext:
     def associate(self, stream: Stream, robot: str, tolerance: float | Spec, spec: Spec | None = None) -> Association:
         """Nearest-stamp association of `stream` rows with the robot's states; counts what is left.
         `associate(stream, robot, spec)`: within the entry's `tolerance` (s; its schema declares the key
-        as TOLERANCE_SCHEMA); `associate(stream, robot, tolerance, spec)`: within the one given."""
+        as TOLERANCE_SCHEMA); `associate(stream, robot, tolerance, spec)`: within the one given.
+        An entry with a `time_offset:` gets every sample inside the states' span instead, each paired with a
+        measurement-time state (index past the robot's states; see fusionkit/time_offset)."""
+        offset = TimeOffset.of(spec if spec is not None else tolerance)
+        if offset is not None:
+            return self.measurement_states.associate(stream, robot, spec if spec is not None else tolerance, offset)
         if spec is None:
             spec = tolerance
             if "tolerance" not in spec.data:
@@ -278,15 +303,16 @@ class BuildContext:
                                   "declares no `tolerance` (plugin bug: add \"tolerance\": TOLERANCE_SCHEMA)")
             tolerance = spec["tolerance"]
         a = nearest(self.state_set(robot, spec).t, stream.t, tolerance)
-        if a.unmatched:
-            self.notes.append(f"{spec.label}: {a.unmatched} of {len(stream)} samples of stream "
-                              f"{stream.name!r} had no state within {tolerance} s and were not used")
+        note = (f"{spec.label}: {a.unmatched} of {len(stream)} samples of stream {stream.name!r} had no state "
+                f"within {tolerance} s and were not used")
+        if a.unmatched and note not in self.notes:  # an entry may associate the same stream more than once
+            self.notes.append(note)
         return a
 
     def problem(self) -> Problem:
         return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
                        self.notes + self._unused_notes(), self.diagnostics, self.plots, self.fixed_keys,
-                       self.value_source)
+                       self.value_source, self.measurement_states)
 
     def require_values(self) -> None:
         """After the initializers: every parameter the description gives no value must have one now."""

@@ -10,11 +10,13 @@ from .variables import VarType
 
 INDEX_BITS = 40
 STATE, STATIC, TIME_VARYING = "state", "static", "time_varying"
+MEASUREMENT = "measurement_time"  # a sample's state at its own time (fusionkit/time_offset): keys, no variables
 
 
 @dataclass(frozen=True)
 class Family:
-    """A family of variables of one robot: per-state, static, or time-varying (one per state)."""
+    """A family of variables of one robot: per-state, static, time-varying (one per state), or
+    measurement-time (keys that stand for a state at a sample's time; no variables: fusionkit/time_offset)."""
 
     id: int
     robot: str

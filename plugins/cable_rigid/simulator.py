@@ -10,6 +10,11 @@ along x, then y, then z (what the Monte-Carlo self-calibration needs: line -> sh
 -> ring, third -> cluster), then a smooth mixed 3-D motion over the workspace with a few degrees
 of roll/pitch/yaw.
 
+`time_offset: {lengths: s, tensions: s}`: the encoder (force sensor) sample stamped t reads the robot
+at t + offset on the motion-capture and VO clock (fusionkit's sign convention,
+docs/models/unified_graph.md#time-offsets: encoders lagging by 30 ms is `lengths: -0.03`); with a `lengths` offset the description gains an
+`encoder_time_offset` parameter (0 +- 1 s) and the config estimates it.
+
 `motion: dynamic` (sequence 01): the commanded, quasi-static trajectory gives the cable lengths
 the encoders read and the tensions; the true end-effector additionally swings like a damped
 pendulum driven by the commanded accelerations (peak horizontal deviation `swing_amplitude`). With
@@ -36,6 +41,7 @@ from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
 
 GRAVITY = 9.81
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
+ENCODER_OFFSET = "encoder_time_offset"  # the description's parameter when the encoders are simulated lagging (s)
 
 POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 NONNEG = {"type": "number", "minimum": 0}
@@ -180,11 +186,13 @@ def workspace_extent(desc: dict, home: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return plus, minus
 
 
-def commanded_trajectory(t: np.ndarray, desc: dict) -> Plan:
+def commanded_trajectory(t: np.ndarray, desc: dict, duration: float | None = None) -> Plan:
+    """The plan at times `t` (s) of a sequence lasting `duration` (default: t's span plus one interval)."""
     home = home_position(desc)
     plus, minus = workspace_extent(desc, home)
     room = np.minimum(plus, minus)
-    duration = float(t[-1]) + (t[1] - t[0] if len(t) > 1 else 0.0)
+    if duration is None:
+        duration = float(t[-1]) + (t[1] - t[0] if len(t) > 1 else 0.0)
     rest = min(0.5, 0.02 * duration)
     axis_len = 0.18 * duration
     bounds, start = {}, rest
@@ -289,17 +297,27 @@ class CdprSimulator(Simulator):
                              "encoder_sigma": NONNEG, "tension_resolution": NONNEG, "tension_sigma": NONNEG,
                              "mocap_sigma": SIGMA, "mocap_every": {"type": "integer", "minimum": 1},
                              "swing_amplitude": NONNEG, "swing_frequency": POSITIVE,
-                             "swing_damping": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1}},
+                             "swing_damping": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
+                             "time_offset": {"type": "object", "additionalProperties": False,
+                                             "properties": {"lengths": {"type": "number"},
+                                                            "tensions": {"type": "number"}}}},
               "additionalProperties": False}
     defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
                 "pulley_error": 0.05, "coplanar_pulleys": True,
                 "vo_sigma": {"rotation": 0.001, "translation": 0.0005}, "dynamic_vo_factor": 2.5,
                 "encoder_sigma": 0.001, "tension_resolution": 0.25, "tension_sigma": 0.1,
                 "mocap_sigma": {"rotation": 0.002, "translation": 0.001}, "mocap_every": 1,
-                "swing_amplitude": 0.02, "swing_frequency": 0.6, "swing_damping": 0.05}
+                "swing_amplitude": 0.02, "swing_frequency": 0.6, "swing_damping": 0.05, "time_offset": {}}
 
     def _params(self, params: dict) -> dict:
         return _merged(self.defaults, params)
+
+    @staticmethod
+    def _lagged(desc: dict, geo: Geometry, t: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+        """(lengths, tensions) of the commanded motion of the `duration`-s sequence at times `t`."""
+        plan = commanded_trajectory(t, desc, duration)
+        length, _ = cable_vectors(plan.pos, plan.rot, geo)
+        return length, static_tensions(plan.pos, plan.rot, geo)
 
     def stream_columns(self, params: dict):
         n = len(robot_description_data(self._params(params)["robot"])["cables"]["attachments"])
@@ -320,18 +338,22 @@ class CdprSimulator(Simulator):
         if len(t) < 10:
             raise ConfigError(f"<simulate {self.name}>: duration * rate gives {len(t)} sample(s); "
                               "expected at least 10")
-        plan = commanded_trajectory(t, desc)
+        span = float(t[-1]) + (t[1] - t[0])  # the sequence's duration
+        plan = commanded_trajectory(t, desc, span)
         true_pulleys = nominal.pulleys + rng.normal(0.0, p["pulley_error"], nominal.pulleys.shape)
         if p["coplanar_pulleys"]:
             true_pulleys = onto_best_fit_plane(true_pulleys)
         geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
 
-        # commanded (quasi-static) pose -> tensions and cable lengths the encoders read
+        # commanded (quasi-static) pose -> tensions and cable lengths the encoders read (stamped by their clock)
         tension = static_tensions(plan.pos, plan.rot, geo)
         length, _ = cable_vectors(plan.pos, plan.rot, geo)
         offsets = -encoder_readings(length[0], tension[0], np.zeros(geo.n), geo.stiffness_EA)
-        z = encoder_readings(length, tension, offsets, geo.stiffness_EA)
+        shifted = {dt: self._lagged(desc, geo, t + dt, span) for dt in set(p["time_offset"].values())}
+        lag = {name: shifted[dt] for name, dt in p["time_offset"].items()}
+        z = encoder_readings(*lag.get("lengths", (length, tension)), offsets, geo.stiffness_EA)
         z = z + rng.normal(0.0, p["encoder_sigma"], z.shape)
+        tension = lag["tensions"][1] if "tensions" in lag else tension
         measured_t = tension + rng.normal(0.0, p["tension_sigma"], tension.shape)
         if p["tension_resolution"] > 0:
             measured_t = p["tension_resolution"] * np.round(measured_t / p["tension_resolution"])
@@ -359,6 +381,8 @@ class CdprSimulator(Simulator):
         calibration = {ROBOT_NAME: {"pulley": {"type": "point3", "values": true_pulleys.tolist()},
                                     "offset": {"type": "scalar", "values": offsets.tolist()},
                                     "vo_scale": {"type": "scalar", "value": float(p["scale"])}}}
+        if "lengths" in p["time_offset"]:
+            calibration[ROBOT_NAME][ENCODER_OFFSET] = {"type": "scalar", "value": float(p["time_offset"]["lengths"])}
         return SourceOutput(streams, {ROBOT_NAME: pose_stream(ROBOT_NAME, t, truth_arr, "simulated:truth")},
                             calibration)
 
@@ -376,6 +400,8 @@ class CdprSimulator(Simulator):
         # the camera rides on the end-effector; its VO scale is unknown (descriptions without one)
         desc.setdefault("sensors", {}).setdefault("camera", {"type": "monocular_camera", "frame": "end_effector"})
         desc["parameters"].setdefault("vo_scale", {"type": "scalar", "value": 1.0, "sigma": 10.0})
+        if "lengths" in p["time_offset"]:
+            desc["parameters"][ENCODER_OFFSET] = {"type": "scalar", "value": 0.0, "sigma": 1.0, "unit": "s"}
         return {ROBOT_NAME: desc}
 
     def home_pose(self, params: dict) -> list[float]:
@@ -393,9 +419,12 @@ class CdprSimulator(Simulator):
     def initializers(self, params: dict) -> list[dict]:
         """Monte-Carlo self-calibration (pulleys, offsets and VO scale from the data alone, no
         prior values: the region is the room, the scale anywhere in SCALE_RANGE), then dead
-        reckoning of the VO at the scale it found, from the home pose set by `pose.origin`."""
+        reckoning of the VO at the scale it found, from the home pose set by `pose.origin`; with lagging
+        encoders, first the offset that best aligns the encoders' motion with the VO's (time.offset_guess)."""
         p = self._params(params)
-        return [{"type": "cable.monte_carlo", "robot": ROBOT_NAME, "stream": "vo", "lengths": "lengths",
+        guess = [{"type": "time.offset_guess", "robot": ROBOT_NAME, "parameter": ENCODER_OFFSET, "stream": "lengths",
+                  "reference": "vo"}] if "lengths" in p["time_offset"] else []
+        return guess + [{"type": "cable.monte_carlo", "robot": ROBOT_NAME, "stream": "vo", "lengths": "lengths",
                  "region": self.search_region(p), "scale_range": list(SCALE_RANGE), "scale": "vo_scale",
                  "sigma": max(p["encoder_sigma"], 1e-4), "vo_sigma": self.vo_sigma(p)},
                 {"type": "pose.dead_reckoning", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale"}]
@@ -413,7 +442,8 @@ class CdprSimulator(Simulator):
                 {"type": "pose.scaled_relative", "robot": ROBOT_NAME, "stream": "vo", "scale": "vo_scale",
                  "sigma": vo_sigma},
                 {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths",
-                 "sigma": max(p["encoder_sigma"], 1e-4)}],
+                 "sigma": max(p["encoder_sigma"], 1e-4),
+                 **({"time_offset": {"parameter": ENCODER_OFFSET}} if "lengths" in p["time_offset"] else {})}],
             "initializers": self.initializers(p),
             "solver": {"type": "batch", "method": "lm"}}
 

@@ -105,7 +105,7 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
     for entry in entries:
         ftype = types[entry.type]
         layout, variables = ftype.layout(ctx, entry)
-        ks, _ = ftype.samples(ctx, entry, note=False)
+        ks, _ = ftype.samples(ctx, entry)
         if not len(ks):
             continue
         q = np.array([[ctx.initial_value(ctx.state_key(robot, int(k))) for k in np.atleast_1d(pair)] for pair in ks])

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
-                           nearest, pose_sigmas)
+                           pose_sigmas)
 
 from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
@@ -98,12 +98,9 @@ class ArmMeasurement(FactorType):
     def sigmas(self, spec: Spec) -> np.ndarray:
         return np.asarray(pose_sigmas(spec["sigma"], False), float)
 
-    def samples(self, ctx, spec: Spec, note: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """(states, stream rows) of the samples this entry uses; relative: (pairs of states, pairs of rows).
-        `note`: count the samples left out in the report (once, when building)."""
-        stream = ctx.stream(spec["stream"])
-        a = ctx.associate(stream, spec["robot"], spec) if note else \
-            nearest(ctx.state_set(spec["robot"], spec).t, stream.t, spec["tolerance"])
+    def samples(self, ctx, spec: Spec) -> tuple[np.ndarray, np.ndarray]:
+        """(states, stream rows) of the samples this entry uses; relative: (pairs of states, pairs of rows)."""
+        a = ctx.associate(ctx.stream(spec["stream"]), spec["robot"], spec)
         return a.state, a.row
 
     def measured(self, stream, rows: np.ndarray) -> np.ndarray:
@@ -200,8 +197,8 @@ class RelativeToolPose(ArmMeasurement):
         check_arm_entry(spec, scope, base=False)
         scope.require_columns(spec, "stream", POSE_COLUMNS)
 
-    def samples(self, ctx, spec: Spec, note: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        ks, rows = super().samples(ctx, spec, note)
+    def samples(self, ctx, spec: Spec) -> tuple[np.ndarray, np.ndarray]:
+        ks, rows = super().samples(ctx, spec)
         nxt = np.flatnonzero(np.diff(rows) == 1)  # consecutive samples, both at a state
         return np.column_stack([ks[nxt], ks[nxt + 1]]), np.column_stack([rows[nxt], rows[nxt + 1]])
 

@@ -160,7 +160,8 @@ class UwbRange(FactorType):
                 continue  # counted by ctx.associate
             k = int(state_of[row])
             pose, anchor = ctx.pose_key(robot, k), ctx.parameter(anchors, param, i)
-            bias = ctx.parameter(robot, spec["bias"], i, k - k % every) if "bias" in spec.data else None
+            held = ctx.state_index(robot, k)  # a measurement-time state (time_offset:) holds its nearest state's bias
+            bias = ctx.parameter(robot, spec["bias"], i, held - held % every) if "bias" in spec.data else None
             if native:
                 factor = range_factor(pose, anchor, z, noise, mount, bias)
             else:

@@ -12,6 +12,10 @@ others are known to 1 mm and fix the frame. With every anchor listed (a site nob
 description has no anchor sigma, the estimate is in the anchor frame (anchor 0 at the origin, anchor
 1 on +x: the room below is drawn in it) and the config evaluates after alignment (`align: se3`).
 
+`time_offset: {ranges: s}`: the range sample stamped t measures the tag at t + offset on the wheels' (and the
+states') clock (fusionkit's sign convention, docs/models/unified_graph.md#time-offsets: ranging that lags by
+50 ms is `ranges: -0.05`); the config then estimates each robot's `uwb_time_offset`.
+
 Streams: `ranges_<r>` (t, r0..r{n-1}), `wheels_<r>` (t, v_right, v_left), `bias_<r>` (the true
 biases, t, b0..), `tag_ranges` (two robots); truth: each robot's trajectory and the anchors.
 """
@@ -75,11 +79,14 @@ class UwbSimulator(Simulator):
                              "unknown_anchors": {"type": "array",
                                                  "items": {"type": "integer", "minimum": 0, "maximum": len(ROOM) - 1}},
                              "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
-                             "bias_model": {"enum": ["none", "constant", "time_varying"]}},
+                             "bias_model": {"enum": ["none", "constant", "time_varying"]},
+                             "time_offset": {"type": "object", "properties": {"ranges": {"type": "number"}},
+                                             "additionalProperties": False}},
               "additionalProperties": False}
     defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
                 "bias_drift": 0.03, "outlier_fraction": 0.0, "burst_s": 1.0, "wheel_sigma": 0.02,
-                "unknown_anchors": [], "anchor_error": 1.0, "scale_error": 0.0, "bias_model": "time_varying"}
+                "unknown_anchors": [], "anchor_error": 1.0, "scale_error": 0.0, "bias_model": "time_varying",
+                "time_offset": {}}
 
     def _params(self, params: dict) -> dict:
         return {**self.defaults, **params}
@@ -109,9 +116,16 @@ class UwbSimulator(Simulator):
             tag = pos + np.column_stack([c * b[0] - s * b[1], s * b[0] + c * b[1]])
             tags[r] = tag
             dt = 1.0 / p["rate"]
+            lag = p["time_offset"].get("ranges", 0.0)
+            if lag:  # the ranges see the tag at their stamp + lag
+                pos_m, heading_m = lissajous(t + lag, 1.3 * j, anchors)
+                tag_m = pos_m + np.column_stack([np.cos(heading_m) * b[0] - np.sin(heading_m) * b[1],
+                                                 np.sin(heading_m) * b[0] + np.cos(heading_m) * b[1]])
+            else:
+                tag_m = tag
             bias = rng.normal(0.0, p["bias_sigma"], n) + np.cumsum(
                 rng.normal(0.0, p["bias_drift"] * np.sqrt(dt), (len(t), n)), axis=0)
-            true_range = np.linalg.norm(tag[:, None, :] - anchors[None], axis=2)
+            true_range = np.linalg.norm(tag_m[:, None, :] - anchors[None], axis=2)
             burst = max(1, int(round(p["burst_s"] * p["rate"])))
             z = ((1 + p["scale_error"]) * true_range + bias + rng.normal(0.0, p["range_sigma"], true_range.shape)
                  + nlos_errors(true_range.shape, p["outlier_fraction"], burst, rng))
@@ -128,6 +142,9 @@ class UwbSimulator(Simulator):
             d = np.linalg.norm(tags["a"] - tags["b"], axis=1) + rng.normal(0.0, p["range_sigma"], len(t))
             streams["tag_ranges"] = Stream("tag_ranges", t, ("range",), d[:, None], "simulated:tag_ranges")
         calibration = {ANCHORS: {"anchor": {"type": "point2", "values": anchors.tolist()}}}
+        if "ranges" in p["time_offset"]:
+            calibration.update({r: {"uwb_time_offset": {"type": "scalar", "value": float(p["time_offset"]["ranges"])}}
+                                for r in ROBOT_NAMES[:p["robots"]]})
         return SourceOutput(streams, truth, calibration)
 
     def robots(self, params: dict) -> dict[str, dict]:
@@ -153,6 +170,8 @@ class UwbSimulator(Simulator):
                                                   "time_varying": p["bias_model"] == "time_varying"}
             if p["scale_error"]:
                 desc["parameters"]["uwb_scale"] = {"type": "scalar", "value": 0.0, "sigma": 0.1}
+            if "ranges" in p["time_offset"]:
+                desc["parameters"]["uwb_time_offset"] = {"type": "scalar", "value": 0.0, "sigma": 1.0, "unit": "s"}
             out[r] = desc
         return out
 
@@ -174,6 +193,9 @@ class UwbSimulator(Simulator):
                 rng_entry["bias_every"] = every
             if p["scale_error"]:
                 rng_entry["scale"] = "uwb_scale"
+            if "ranges" in p["time_offset"]:
+                rng_entry["time_offset"] = {"parameter": "uwb_time_offset"}  # from 0: range rates and wheel
+                # speeds see the motion differently (a range's rate depends on the direction), no guess from them
             factors.append(rng_entry)
             if p["bias_model"] == "time_varying":
                 walk = {"type": "parameter.random_walk", "robot": r, "parameter": "uwb_bias",

@@ -13,11 +13,12 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_SIGMA_SCHEMA, FactorExample, FactorType, Spec, gaussian, pose_sigmas
+from fusionkit.api import (POSE_SIGMA_SCHEMA, DataError, FactorExample, FactorType, Spec, Stream, gaussian,
+                           pose_sigmas)
 
 from . import rules
-from .factors import check_drive_entry
-from .kinematics import wheel_angles
+from .factors import check_drive_entry, require_gyro, require_wheels
+from .kinematics import GYRO, IMU_GYRO, gyro_integrals, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, drive_of
 
 NAME = {"type": "string"}
@@ -30,19 +31,39 @@ THRESHOLDS = {"v": ({**RATE, "default": rules.V_THRES}, "m/s"),
               "dv": ({**RATE, "default": rules.DV_THRES}, "m/s")}
 
 
-def wheel_steps(stream, drive) -> rules.WheelSteps:
+def wheel_steps(stream, drive, gyro_stream=None) -> rules.WheelSteps:
     """Per-interval wheel-contact speeds (m/s) of a wheel stream with the description's nominal
-    parameters; the gyro sample ending each interval, scaled and biased."""
+    parameters; the gyro's mean rate over each interval, scaled and biased: the wheel stream's gyro
+    sample ending it, or an IMU's `gz` samples (of `gyro_stream` when given) integrated over it
+    (kinematics.gyro_integrals; the wheel stream must lie inside the IMU's span)."""
     dt = np.diff(stream.t)
 
     def speed(wheel: str) -> np.ndarray:
-        return drive.nominal[RADIUS[wheel]] * np.diff(wheel_angles(stream.column(wheel), drive.ticks[wheel])) / dt
-    gyro = None
-    if drive.has_gyro and "gyro" in stream.columns:
-        gyro = drive.nominal[GYRO_SCALE] * stream.column("gyro")[1:] + drive.nominal[GYRO_BIAS]
-    middle = speed("passive") if drive.has_passive and "passive" in stream.columns else None
+        return drive.nominal[RADIUS[wheel]] * np.diff(wheel_column(stream, drive, wheel)) / dt
+    rate, source = None, stream if gyro_stream is None else gyro_stream
+    if source is stream and GYRO in stream.columns:
+        rate = stream.column(GYRO)[1:]  # the interval means themselves
+    elif GYRO in source.columns or IMU_GYRO in source.columns:
+        rate = gyro_integrals(source, stream.t) / dt
+    gyro = drive.nominal[GYRO_SCALE] * rate + drive.nominal[GYRO_BIAS] if drive.has_gyro and rate is not None else None
+    middle = speed("passive") if drive.has_passive and drive.columns["passive"] in stream.columns else None
     return rules.WheelSteps(dt, speed("left"), speed("right"), drive.nominal[AXLE], middle=middle, gyro=gyro,
                             passive_offset=drive.nominal.get(PASSIVE_OFFSET, 0.0))
+
+
+def inside_gyro_span(stream, gyro_stream, spec: Spec, notes: list) -> Stream:
+    """The wheel samples inside the gyro stream's span (a note counts those left out); DataError with
+    fewer than two."""
+    rows = inside(gyro_stream.t, stream.t)
+    if rows.sum() < 2:
+        raise DataError(f"{spec.label}: wheel stream {stream.name!r} (t = {stream.t[0]:.6f} .. {stream.t[-1]:.6f} s) "
+                        f"and gyro stream {gyro_stream.name!r} (t = {gyro_stream.t[0]:.6f} .. "
+                        f"{gyro_stream.t[-1]:.6f} s) overlap by fewer than two wheel samples (expected streams on one "
+                        f"clock that overlap)")
+    if not rows.all():
+        notes.append(f"{spec.label}: {int((~rows).sum())} of {len(rows)} samples of stream {stream.name!r} lie "
+                     f"outside gyro stream {gyro_stream.name!r} and are left out")
+    return stream.subset(rows)
 
 
 def rule_poses(method: str, steps: rules.WheelSteps, thresholds: dict, reconstruct: bool) -> np.ndarray:
@@ -64,9 +85,9 @@ class Baseline(FactorType):
     summary = ("rule-based dead reckoning of a wheel stream (odometry, gyrodometry, the passive-wheel paper's "
                "rules) as relative poses between consecutive states (native BetweenFactorPose2)")
     robot_fields = ("robot",)
-    stream_fields = ("stream",)
+    stream_fields = ("stream", "gyro_stream")
     schema = {"type": "object",
-              "properties": {"robot": NAME, "stream": NAME,
+              "properties": {"robot": NAME, "stream": NAME, "gyro_stream": NAME,
                              "method": {"enum": list(NEEDS), "default": "final_version"},
                              "thresholds": {"type": "object",
                                             "properties": {k: s for k, (s, _) in THRESHOLDS.items()},
@@ -77,8 +98,9 @@ class Baseline(FactorType):
               "required": ["robot", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        """A diff_drive robot with pose2 states; the stream has left, right and what the method needs,
-        and the description has the passive wheel / gyro the method uses."""
+        """A diff_drive robot with pose2 states; the stream has left, right and what the method needs
+        (the gyro: in `gyro_stream` when given), and the description has the passive wheel / gyro the
+        method uses."""
         drive = drive_of(check_drive_entry(spec, scope))
         needs = NEEDS[spec["method"]]
         for sensor, present, param in (("passive wheel", drive.has_passive, "passive_radius"),
@@ -86,17 +108,22 @@ class Baseline(FactorType):
             if sensor.split()[0] in needs and not present:
                 raise spec.error("method", f"method {spec['method']} needs the {sensor}; robot {spec['robot']!r} "
                                  f"has none (its description lacks parameter {param})")
-        scope.require_columns(spec, "stream", ("left", "right") + needs)
+        require_wheels(spec, scope, drive, ("left", "right") + tuple(w for w in needs if w == "passive"))
+        if "gyro" in needs:
+            require_gyro(spec, scope, "gyro_stream" if "gyro_stream" in spec.data else "stream")
 
     def build(self, ctx, spec: Spec) -> None:
         """The rule's poses at the stream's samples, interpolated at the state times (x, y, unwrapped
         theta; states outside the stream are left out with a note). The states this entry declares
         start at the rule's motion from the first state's current value. Sigma (rad and m per sqrt(s)) grows
-        with the square root of each interval."""
+        with the square root of each interval. With `gyro_stream`, the wheel samples inside its span."""
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         stream = ctx.stream(spec["stream"])
-        steps = wheel_steps(stream, drive_of(ctx.robot(robot)))
+        gyro_stream = ctx.stream(spec["gyro_stream"]) if "gyro_stream" in spec.data else None
+        if gyro_stream is not None:
+            stream = inside_gyro_span(stream, gyro_stream, spec, ctx.notes)
+        steps = wheel_steps(stream, drive_of(ctx.robot(robot)), gyro_stream)
         poses = rule_poses(spec["method"], steps, spec["thresholds"], spec["reconstruct"])
         ks = np.flatnonzero((states.t >= stream.t[0]) & (states.t <= stream.t[-1]))
         if len(ks) < len(states):

@@ -11,9 +11,9 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import FactorExample, FactorType, Spec, gaussian
+from fusionkit.api import DataError, FactorExample, FactorType, Spec, gaussian
 
-from .kinematics import gyro_increments, increments, inside, wheel_angles
+from .kinematics import GYRO, IMU_GYRO, gyro_integrals, increments, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .preintegration import preintegrate, preintegrated_residual
 from .residuals import encoder_residual, gyro_residual, lateral_residual, over_read
@@ -35,15 +35,44 @@ def check_drive_entry(spec: Spec, scope):
     return desc
 
 
+def require_wheels(spec: Spec, scope, drive, wheels) -> None:
+    """Error unless the entry's stream has the column of each of `wheels` (named by the description's
+    `joints`, or `left`/`right`/`passive`)."""
+    have = scope.stream_columns[spec["stream"]]
+    for wheel in wheels:
+        column = drive.columns[wheel]
+        if column != wheel and column not in have:
+            origin = scope.stream_origins.get(spec["stream"])
+            raise spec.error("stream", f"robot {spec['robot']!r} names joint {column!r} for its {wheel} wheel "
+                             f"(joints.{wheel}); stream {spec['stream']!r}{f' ({origin})' if origin else ''} has no "
+                             f"such column; it has {', '.join(have) or '(none)'}")
+    scope.require_columns(spec, "stream", tuple(drive.columns[w] for w in wheels))
+
+
+def require_gyro(spec: Spec, scope, stream_key: str) -> None:
+    """Error unless stream `spec[stream_key]` has a gyro: a wheel stream's `gyro` column or an IMU's `gz`."""
+    have = scope.stream_columns[spec[stream_key]]
+    if GYRO not in have and IMU_GYRO not in have:
+        origin = scope.stream_origins.get(spec[stream_key])
+        raise spec.error(stream_key, f"stream {spec[stream_key]!r}{f' ({origin})' if origin else ''} has neither "
+                         f"column {GYRO!r} (a wheel stream's gyro) nor {IMU_GYRO!r} (an IMU's z rate); it has "
+                         f"{', '.join(have) or '(none)'}")
+
+
 def intervals(ctx, spec: Spec, stream=None) -> np.ndarray:
     """Indices k of the states whose interval (k-1, k) lies inside the stream (every interval without one);
-    the intervals left out are counted in the report."""
+    the intervals left out are counted in the report; DataError when none lies inside it."""
     states = ctx.state_set(spec["robot"], spec)
     ks = np.arange(1, len(states))
     if stream is None:
         return ks
     ok = inside(stream.t, states.t)
     kept = ks[ok[ks - 1] & ok[ks]]
+    if len(ks) and not len(kept):
+        raise DataError(f"{spec.label}: stream {stream.name!r} ({stream.origin or 'no origin'}) spans t = "
+                        f"{stream.t[0]:.6f} .. {stream.t[-1]:.6f} s and the states of robot {spec['robot']!r} t = "
+                        f"{states.t[0]:.6f} .. {states.t[-1]:.6f} s: no state interval lies inside the stream "
+                        f"(expected streams on one clock that overlap)")
     if len(kept) < len(ks):
         ctx.notes.append(f"{spec.label}: {len(ks) - len(kept)} of {len(ks)} state intervals of {spec['robot']!r} lie "
                          f"outside stream {stream.name!r} and get no factor from it")
@@ -121,7 +150,7 @@ class Encoder(FactorType):
         wheels = spec["wheels"] if "wheels" in spec.data else list(drive.wheels)
         if "passive" in wheels and not drive.has_passive:
             raise spec.error("wheels", f"robot {spec['robot']!r} has no passive wheel (no parameter 'passive_radius')")
-        scope.require_columns(spec, "stream", tuple(wheels))
+        require_wheels(spec, scope, drive, wheels)
 
     def build(self, ctx, spec: Spec) -> None:
         """sigma: rad/sqrt(s) of a wheel's angle; a factor's sigma is sigma * sqrt(dt)."""
@@ -134,7 +163,7 @@ class Encoder(FactorType):
         dts = states.t[ks] - states.t[ks - 1]
         pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
         for wheel in (spec["wheels"] if "wheels" in spec.data else drive.wheels):
-            angles = increments(stream.t, wheel_angles(stream.column(wheel), drive.ticks[wheel]), states.t)[ks - 1]
+            angles = increments(stream.t, wheel_column(stream, drive, wheel), states.t)[ks - 1]
             lateral = {"left": (AXLE, 0.5), "right": (AXLE, -0.5)}.get(wheel, (PASSIVE_OFFSET, 1.0))
             has_lateral = lateral[0] in ctx.robot(robot).parameters
             for i, (k, angle, dt) in enumerate(zip(ks.tolist(), angles.tolist(), dts.tolist())):
@@ -180,7 +209,8 @@ def gyro_factor(keys: list[int], integral: float, dt: float, noise) -> gtsam.Cus
 class Gyro(FactorType):
     name = "wheels.gyro"
     summary = ("z gyro per state interval: heading change = gyro_scale * integrated reading + gyro_bias * dt "
-               "(diff_drive; the bias may drift: parameter.random_walk)")
+               "(diff_drive; the wheel stream's gyro column or an IMU stream's gz; the bias may drift: "
+               "parameter.random_walk)")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",
@@ -191,16 +221,17 @@ class Gyro(FactorType):
         if not drive_of(check_drive_entry(spec, scope)).has_gyro:
             raise spec.error("robot", f"robot {spec['robot']!r} has no gyro: its description needs parameters "
                              f"{GYRO_SCALE!r} and {GYRO_BIAS!r}")
-        scope.require_columns(spec, "stream", ("gyro",))
+        require_gyro(spec, scope, "stream")
 
     def build(self, ctx, spec: Spec) -> None:
         """sigma: rad/sqrt(s) of the integrated reading (angle random walk in the gyro's own units); a
-        factor's sigma is sigma * sqrt(dt)."""
+        factor's sigma is sigma * sqrt(dt). The stream's `gyro` column holds interval means, its `gz`
+        column (an IMU stream) instantaneous samples, integrated by the trapezoid rule (kinematics.py)."""
         robot = spec["robot"]
         stream = ctx.stream(spec["stream"])
         states = ctx.state_set(robot, spec)
         ks = intervals(ctx, spec, stream)
-        integrals = gyro_increments(stream.t, stream.column("gyro"), states.t)[ks - 1]
+        integrals = gyro_integrals(stream, states.t)[ks - 1]
         dts = states.t[ks] - states.t[ks - 1]
         pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
         noises = Noises(ctx, spec, spec["sigma"])
@@ -310,8 +341,7 @@ class Preintegrated(FactorType):
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
-        check_drive_entry(spec, scope)
-        scope.require_columns(spec, "stream", ("left", "right"))
+        require_wheels(spec, scope, drive_of(check_drive_entry(spec, scope)), ("left", "right"))
 
     def build(self, ctx, spec: Spec) -> None:
         """sigma: m/sqrt(s) of each wheel's travel; lateral_sigma: m/sqrt(s) of sideways slip (absent:
@@ -325,7 +355,7 @@ class Preintegrated(FactorType):
             return
         bounds, window = sample_windows(stream.t, states.t, ks)
         used = window >= 0
-        left, right = (increments(stream.t, wheel_angles(stream.column(w), drive.ticks[w]), bounds)[used]
+        left, right = (increments(stream.t, wheel_column(stream, drive, w), bounds)[used]
                        for w in ("left", "right"))
         nominal = [drive.nominal[n] for n in (RADIUS_LEFT, RADIUS_RIGHT, AXLE)]
         pre = preintegrate(window[used], left, right, np.diff(bounds)[used], nominal, spec["sigma"],

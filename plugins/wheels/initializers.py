@@ -7,7 +7,8 @@ import numpy as np
 
 from fusionkit.api import Initializer, Spec, differential_drive_twist
 
-from .kinematics import increments, wheel_angles
+from .factors import require_wheels
+from .kinematics import increments, wheel_column
 from .model import AXLE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .rules import integrate
 
@@ -29,7 +30,7 @@ class DeadReckoning(Initializer):
         wheels = ("left", "right") + (("passive",) if spec["forward"] == "passive" else ())
         if spec["forward"] == "passive" and PASSIVE_RADIUS not in desc.parameters:
             raise spec.error("forward", f"robot {spec['robot']!r} has no passive wheel (no parameter 'passive_radius')")
-        scope.require_columns(spec, "stream", wheels)
+        require_wheels(spec, scope, drive_of(desc), wheels)
 
     def initialize(self, ctx, spec: Spec) -> None:
         """`forward: passive`: the passive wheel's travel carried to the axle midpoint (it hardly slips: a
@@ -40,11 +41,11 @@ class DeadReckoning(Initializer):
         stream = ctx.stream(spec["stream"])
         states = ctx.state_set(robot, spec)
         t = np.clip(states.t, stream.t[0], stream.t[-1])
-        travel = [drive.nominal[r] * increments(stream.t, wheel_angles(stream.column(w), drive.ticks[w]), t)
+        travel = [drive.nominal[r] * increments(stream.t, wheel_column(stream, drive, w), t)
                   for w, r in (("right", RADIUS_RIGHT), ("left", RADIUS_LEFT))]
         forward, turn = differential_drive_twist(*travel, drive.nominal[AXLE])
         if spec["forward"] == "passive":
-            passive = increments(stream.t, wheel_angles(stream.column("passive"), drive.ticks["passive"]), t)
+            passive = increments(stream.t, wheel_column(stream, drive, "passive"), t)
             forward = drive.nominal[PASSIVE_RADIUS] * passive + drive.passive_offset * turn
         first = states.key(0)
         start = ctx.initial_value(first) if ctx.has_variable(first) else gtsam.Pose2()

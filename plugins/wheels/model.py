@@ -4,6 +4,7 @@ passive encoder wheel on the axle and a gyro (docs/reference/robot_description.m
     model: diff_drive
     ticks_per_revolution: 2048          # optional: the left/right columns are encoder ticks (else rad)
     passive_ticks_per_revolution: 1024  # optional: the passive column is ticks (else rad)
+    joints: {left: wheel_left_joint, right: wheel_right_joint, passive: caster_joint}  # optional: column names
     parameters:                          # scalars with a value; names fixed by the model
       wheel_radius_left:  {type: scalar, value: 0.04, sigma: 0.0005, unit: m}     # required
       wheel_radius_right: {type: scalar, value: 0.04, sigma: 0.0005, unit: m}     # required
@@ -15,7 +16,9 @@ passive encoder wheel on the axle and a gyro (docs/reference/robot_description.m
 
 The robot's pose is the axle midpoint, x forward, y towards the left wheel; `passive_offset` is the
 passive wheel's lateral position (m, towards the left wheel; absent: the midpoint). Any of the
-parameters may be `time_varying` (a drifting radius, a drifting gyro bias).
+parameters may be `time_varying` (a drifting radius, a drifting gyro bias). `joints` names the wheel
+stream's column of each wheel -- the robot's joint names, as a ROS JointState topic gives them; absent,
+the columns are `left`, `right`, `passive`.
 """
 
 from __future__ import annotations
@@ -31,6 +34,9 @@ RADIUS = {"left": RADIUS_LEFT, "right": RADIUS_RIGHT, "passive": PASSIVE_RADIUS}
 POSITIVE = (RADIUS_LEFT, RADIUS_RIGHT, AXLE, PASSIVE_RADIUS)
 NAMES = POSITIVE + (PASSIVE_OFFSET, GYRO_SCALE, GYRO_BIAS)
 TICKS = {"type": "number", "exclusiveMinimum": 0}
+JOINT = {"type": "string", "minLength": 1}
+JOINTS = {"type": "object", "properties": {"left": JOINT, "right": JOINT, "passive": JOINT},
+          "required": ["left", "right"], "additionalProperties": False}
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,7 @@ class DiffDrive:
 
     nominal: dict[str, float]
     ticks: dict[str, float | None]   # wheel -> ticks per revolution (None: the column is in rad)
+    columns: dict[str, str]          # wheel -> its column in the wheel stream (a joint name, or the wheel's)
 
     @property
     def has_passive(self) -> bool:
@@ -63,8 +70,10 @@ def drive_of(desc: RobotDescription) -> DiffDrive:
     """The DiffDrive of a (checked) diff_drive description."""
     nominal = {name: float(desc.parameters[name].values[0]) for name in NAMES if name in desc.parameters}
     ticks = desc.extra.get("ticks_per_revolution")
+    columns = {wheel: wheel for wheel in ("left", "right", "passive")}
+    columns.update(desc.extra.get("joints", {}))
     return DiffDrive(nominal, {"left": ticks, "right": ticks,
-                               "passive": desc.extra.get("passive_ticks_per_revolution")})
+                               "passive": desc.extra.get("passive_ticks_per_revolution")}, columns)
 
 
 class DiffDriveModel(RobotModel):
@@ -72,13 +81,15 @@ class DiffDriveModel(RobotModel):
     summary = ("differential drive: wheel radii, axle length, optional passive wheel on the axle (radius, "
                "offset) and gyro (scale, bias); encoder ticks or wheel angles")
     schema = {"type": "object",
-              "properties": {"ticks_per_revolution": TICKS, "passive_ticks_per_revolution": TICKS},
+              "properties": {"ticks_per_revolution": TICKS, "passive_ticks_per_revolution": TICKS,
+                             "joints": JOINTS},
               "additionalProperties": False}
 
     def check_description(self, desc: RobotDescription) -> None:
         """The driven wheels' parameters exist; every parameter the model names is one scalar with a
         value (radii and axle length > 0); a passive offset or passive ticks need the passive wheel,
-        which must lie between the driven wheels; the gyro has both its scale and its bias."""
+        which must lie between the driven wheels; the gyro has both its scale and its bias; `joints` names
+        the passive wheel's joint exactly when there is one, and three different joints."""
         params = desc.parameters
         for name in (RADIUS_LEFT, RADIUS_RIGHT, AXLE):
             if name not in params:
@@ -107,6 +118,15 @@ class DiffDriveModel(RobotModel):
             if abs(float(params[PASSIVE_OFFSET].values[0])) >= half:
                 raise desc.error(("parameters", PASSIVE_OFFSET, "value"), f"the passive wheel must lie between "
                                  f"the driven wheels: |{PASSIVE_OFFSET}| < axle_length / 2 = {half:g} m")
+        joints = desc.extra.get("joints")
+        if joints is not None:
+            if "passive" in joints and not passive:
+                raise desc.error(("joints", "passive"), "joints.passive needs a passive wheel: add parameter "
+                                 f"{PASSIVE_RADIUS!r}")
+            if passive and "passive" not in joints:
+                raise desc.error(("joints",), "the robot has a passive wheel: name its joint too (joints.passive)")
+            if len(set(joints.values())) < len(joints):
+                raise desc.error(("joints",), f"each wheel needs its own joint; got {joints}")
         gyro = [n for n in (GYRO_SCALE, GYRO_BIAS) if n in params]
         if len(gyro) == 1:
             other = GYRO_BIAS if gyro[0] == GYRO_SCALE else GYRO_SCALE

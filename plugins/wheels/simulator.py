@@ -125,7 +125,7 @@ class WheelsSimulator(Simulator):
             name = RADIUS[params["drift"]["wheel"]]
             span = max(params["duration"], 1.0)
             factors += [{"type": "parameter.random_walk", "robot": "robot", "parameter": name,
-                         "sigma": abs(params["drift"]["change"]) / np.sqrt(span)},
+                         "sigma": float(abs(params["drift"]["change"]) / np.sqrt(span))},
                         {"type": "pose.absolute", "robot": "robot", "stream": "camera", "sigma": params["camera"]["sigma"]}]
         return {"robots": {"robot": {"description": "robots/robot.yaml",
                                      "states": {"stream": "wheels", "type": "pose2"}}},

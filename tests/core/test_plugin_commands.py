@@ -72,6 +72,25 @@ def test_plugins_lists_a_command_with_its_usage(use_plugins, capsys):
     assert capsys.readouterr().out.splitlines()[1] == "  usage: fusionkit test-echo --out OUT word"
 
 
+class Percent(Echo):
+    name = "test-percent"
+    summary = "a 95 % interval"
+
+
+class PercentPlugin:
+    @hookimpl
+    def register_commands(self):
+        return [Percent]
+
+
+def test_help_lists_a_command_whose_summary_holds_a_percent_sign(use_plugins, capsys):
+    use_plugins(PercentPlugin())
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0
+    assert "a 95 % interval" in capsys.readouterr().out
+
+
 def test_a_plugin_may_not_take_a_builtin_command_name(use_plugins):
     assert tuple(COMMANDS) == BUILTIN_COMMANDS
     reg = use_plugins(ClashingPlugin())

@@ -79,6 +79,11 @@ def check_cable_robot_rigid(out: Path) -> None:
     mocap = _report(out, "arascam_mocap")["evaluation"]["parameters"]["cdpr"]
     assert mocap["pulley"]["mean_abs_error"] < 0.006 and mocap["offset"]["mean_abs_error"] < 0.006
     assert np.abs(mocap["pulley"]["z_per_axis"]).max() < 3.5
+    lagged = _report(out, "lagged_result")  # encoders 30 ms late: measured -29.965 +- 0.045 ms, chi2/dof 1.01
+    offset = lagged["parameters"]["cdpr"]["encoder_time_offset"]
+    assert abs(offset["value"] + 0.030) < 3 * offset["sigma"] and offset["sigma"] < 2e-4
+    assert lagged["solver"]["chi2_per_dof"] < 1.5
+    assert lagged["evaluation"]["parameters"]["cdpr"]["pulley"]["mean_abs_error"] < 0.02
 
 
 def check_cable_robot_sag(out: Path) -> None:
@@ -158,6 +163,40 @@ def check_serial_arm(out: Path) -> None:
         assert 0.7 < _report(out, folder)["solver"]["chi2_per_dof"] < 1.3, folder  # measured: 0.84, 0.85
 
 
+def check_wheeled_robot(out: Path) -> None:
+    """Through a stuck episode the graph's path error is well below plain odometry's; the rule
+    final_version is on a par with the graph on this run; the camera calibrates the radii, axle and gyro
+    within 3 sigma; the fixed-lag smoother follows the left radius's 1.2 mm wear."""
+    ate = {name: _report(out, f"wheels_{name}")["evaluation"]["trajectories"]["robot"]["ate_rmse_m"]
+           for name in ("graph", "odometry", "final_version", "calibrated")}
+    assert ate["graph"] < 0.1 and ate["odometry"] > 2 * ate["graph"]  # measured: 0.060, 0.185
+    assert ate["final_version"] < 0.1  # measured: 0.047
+    assert ate["calibrated"] < 0.002  # measured: 0.0005 (camera 2.8 mm)
+    for name, ev in _report(out, "wheels_calibrated")["evaluation"]["parameters"]["robot"].items():
+        assert abs(ev["z_per_axis"][0][0]) < 3, (name, ev)  # measured: 1.7 at most (left radius)
+    change, sigma = map(float, (out / "wheels_drift_change.txt").read_text().split())
+    assert abs(change + 0.0012) < 3 * sigma and sigma < 0.0005  # measured: -1.22 mm +- 0.31 mm
+
+
+def check_epuck(out: Path) -> None:
+    """Localization within 1 mm with sigmas that cover it; the sensors' gains and offsets within 3 sigma;
+    the IR fit finds IR6's near-wall term (published 2739, 0.638, 0.6323); alpha1-4 cover the truth."""
+    loc = _report(out, "epuck")["evaluation"]["trajectories"]["puck"]
+    assert loc["ate_rmse_m"] < 0.001                                     # measured: 0.5 mm
+    assert min(loc["consistency_percent"][a]["3sigma"] for a in "xy") > 95.0
+    found = _report(out, "epuck_cal_result")["evaluation"]["parameters"]["puck"]
+    for name in ("ir_gain", "ir_offset"):
+        assert np.abs(np.ravel(found[name]["z_per_axis"])).max() < 3.0, name   # measured: 1.8 at most
+    terms = yaml.safe_load((out / "epuck_fit/ir/ir_models.yaml").read_text())["sensors"]["ir6"]["mean"]
+    bump = min(terms, key=lambda t: abs(t[1]))
+    assert np.allclose(bump, [2739.0, 0.638, 0.6323], rtol=0.01)          # measured: 0.08 % at most
+    alphas = json.loads((out / "epuck_fit/motion/fit.json").read_text())
+    truth = {"alpha1": 0.045, "alpha2": 8.8e-5, "alpha3": 0.095862, "alpha4": 0.1181}
+    for name, value in truth.items():
+        low, high = alphas[name]["interval"]
+        assert low < value < high, (name, alphas[name])
+
+
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs_as_typed_and_its_estimates_meet_their_error_bounds(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
@@ -184,3 +223,7 @@ def test_tutorial_runs_as_typed_and_its_estimates_meet_their_error_bounds(md: Pa
         check_arash(tmp_path / "out")
     if md.stem == "serial_arm":
         check_serial_arm(tmp_path / "out")
+    if md.stem == "wheeled_robot":
+        check_wheeled_robot(tmp_path / "out")
+    if md.stem == "epuck":
+        check_epuck(tmp_path / "out")

@@ -1,0 +1,177 @@
+"""The wheel graph against the rule-based baselines over many simulated runs (docs/models/wheels.md#results-simulation).
+
+For each fault class (clean, roughness, bumps, stuck, slide) and each run i (seed i, path shape
+PATHS[i % 5]: loop, figure eight, square, slalom, random; 30 s at 20 Hz), wheels.sim generates one run
+and every method estimates its end pose from the same wheel stream:
+
+  - the rules of plugins/wheels/rules.py with the description's nominal intrinsics and the default
+    thresholds: odometry, gyrodometry, first_version, minimal_gyro, final_version;
+  - the graph: the simulator's own config (the shipped per-step formulation of configs/wheels_passive.yaml:
+    one wheels.encoder factor per wheel and step with over-runs down-weighted, wheels.gyro with scale and
+    bias estimated, wheels.nonholonomic, dead reckoning from the passive wheel to start, batch LM);
+  - its ablations: without the passive wheel (its encoder factor dropped, dead reckoning from the driven
+    wheels) and without the gyro (wheels.gyro dropped).
+
+Measures: the final position error (m) and the final heading error (deg) against the simulator's truth;
+per class the median and 90th percentile of each method, how often the graph beats every rule, and
+the ratio graph / best rule (median and worst run); the graph's uncertainty consistency: the share of
+its final x, y and heading errors inside 1, 2 and 3 of its own marginal sigma (Gaussian: 68/95/99.7 %).
+The fault settings were fixed before any run; the simulator's noise levels are the ones the graph's
+config assumes (a self-consistency setting); the faults themselves are outside its model. A graph
+solve that fails counts as a loss and is reported.
+
+    python benchmarks/bench_wheels_sim.py [--quick] [--runs N] [--workers W]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from _timing import table
+
+PATHS = ("loop", "figure_eight", "square", "slalom", "random")
+DURATION = 30.0
+FAULTS = {"clean": {},
+          "roughness": {"roughness": {"height": 0.0015, "spacing": 0.1}},   # 1.5 mm wires every 10 cm
+          "bumps": {"bumps": {"count": 3, "height": 0.03}},                 # up to a 3 cm step
+          "stuck": {"stuck": {"count": 2, "duration": 1.5}},
+          "slide": {"slide": {"turn_rate": 0.5, "slip": 0.2}}}              # 20 % under-rotation above 0.5 rad/s
+RULES = ("odometry", "gyrodometry", "first_version", "minimal_gyro", "final_version")
+GRAPHS = ("graph", "graph without passive", "graph without gyro")
+
+
+def _without_passive(config: dict) -> None:
+    config["factors"] = [f for f in config["factors"] if f.get("wheels") != ["passive"]]
+    config["initializers"][0]["forward"] = "driven"
+
+
+def _without_gyro(config: dict) -> None:
+    config["factors"] = [f for f in config["factors"] if f["type"] != "wheels.gyro"]
+
+
+EDITS = {"graph": None, "graph without passive": _without_passive, "graph without gyro": _without_gyro}
+
+
+def _end_errors(end: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """(position error m, heading error deg) of an end pose (x, y, theta) against the true one."""
+    heading = np.angle(np.exp(1j * (end[2] - truth[2])))
+    return float(np.hypot(*(end[:2] - truth[:2]))), float(np.degrees(abs(heading)))
+
+
+def one_run(job: tuple[str, int, float]) -> dict:
+    """Every method's end-pose errors on run `seed` of fault class `fault`; the graph's end-pose z-scores."""
+    from fusionkit.api import SolverError
+    from fusionkit.pipeline import estimate
+    from fusionkit.simulate import simulated_config
+    from fusionkit_plugins.wheels.baseline import rule_poses, wheel_steps
+    from fusionkit_plugins.wheels.baseline import THRESHOLDS
+    from fusionkit_plugins.wheels.model import drive_of
+
+    fault, seed, duration = job
+    params = {"duration": duration, "path": PATHS[seed % len(PATHS)], "faults": FAULTS[fault]}
+    thresholds = {k: s["default"] for k, (s, _) in THRESHOLDS.items()}
+    out: dict = {"fault": fault, "seed": seed, "path": params["path"], "errors": {}, "failed": []}
+    for name, edit in EDITS.items():
+        with simulated_config("wheels.sim", params, seed=seed, edit=edit) as config:
+            try:
+                result = estimate(config, keep_rejected=True)
+            except SolverError as exc:
+                out["failed"].append(f"{name}: {str(exc).splitlines()[0]}")
+                out["errors"][name] = (np.inf, np.inf)
+                continue
+        truth = result.truth.trajectories["robot"]
+        q = truth.pose_array()[-1]
+        true_end = np.array([q[0], q[1], 2 * np.arctan2(q[5], q[6])])
+        p = result.trajectories["robot"].pose_array()[-1]
+        end = np.array([p[0], p[1], 2 * np.arctan2(p[5], p[6])])
+        out["errors"][name] = _end_errors(end, true_end)
+        if name == "graph":
+            states = result.problem.states["robot"]
+            key = states.family.keys([len(states) - 1])[0]
+            sigma_xy = result.position_sigma["robot"][-1]
+            sigma_theta = np.sqrt(result.solution.covariances[key][2, 2])
+            err = end - true_end
+            err[2] = np.angle(np.exp(1j * err[2]))
+            out["z"] = (err / np.r_[sigma_xy, sigma_theta]).tolist()
+        if RULES[0] not in out["errors"]:  # the rules on the same stream, from the first variant that solved
+            steps = wheel_steps(result.streams["wheels"], drive_of(result.config.robots["robot"].description))
+            for rule in RULES:
+                out["errors"][rule] = _end_errors(rule_poses(rule, steps, thresholds, False)[-1], true_end)
+    return out
+
+
+def _cell(values: np.ndarray, digits: int) -> str:
+    return f"{np.median(values):.{digits}f} / {np.percentile(values, 90):.{digits}f}"
+
+
+def report(runs: list[dict]) -> tuple[str, dict]:
+    """The tables: errors per class and method, the graph against the best rule, consistency."""
+    methods = RULES + GRAPHS
+    parts, raw = [], {}
+    for measure, index, digits, unit in (("position", 0, 3, "m"), ("heading", 1, 2, "deg")):
+        rows = []
+        for fault in FAULTS:
+            rs = [r for r in runs if r["fault"] == fault]
+            errs = {m: np.array([r["errors"].get(m, (np.nan, np.nan))[index] for r in rs]) for m in methods}
+            best_rule = np.min([errs[m] for m in RULES], axis=0)
+            ratio = errs["graph"] / best_rule
+            raw.setdefault(fault, {})[measure] = {
+                "runs": len(rs), **{m: {"median": float(np.median(errs[m])), "p90": float(np.percentile(errs[m], 90))}
+                                    for m in methods},
+                "graph_best": int(np.sum(ratio < 1)), "ratio_median": float(np.median(ratio)),
+                "ratio_worst": float(np.max(ratio))}
+            rows.append([fault, len(rs)] + [_cell(errs[m], digits) for m in methods]
+                        + [f"{np.sum(ratio < 1)}/{len(rs)}", f"{np.median(ratio):.2f}", f"{np.max(ratio):.2f}"])
+        parts.append(table(["class", "runs"] + list(methods) + ["graph best", "ratio med", "ratio worst"], rows,
+                           f"final {measure} error ({unit}), median / 90th percentile; ratio = graph / best rule per run"))
+    rows = []
+    for label, faults in (("clean", ["clean"]), ("faulty", [f for f in FAULTS if f != "clean"])):
+        z = np.abs(np.array([r["z"] for r in runs if r["fault"] in faults and "z" in r]))
+        if not len(z):
+            continue
+        shares = [[float(np.mean(z[:, axis] < k)) for k in (1, 2, 3)] for axis in range(3)]
+        raw.setdefault("consistency", {})[label] = {"runs": len(z), "x": shares[0], "y": shares[1], "heading": shares[2]}
+        rows.append([label, len(z)] + ["/".join(f"{100 * s:.0f}" for s in sh) for sh in shares])
+    parts.append(table(["runs", "n", "x in 1/2/3 sigma %", "y %", "heading %"], rows,
+                       "graph final-pose consistency (Gaussian: 68/95/100 %)"))
+    failed = [f"{r['fault']} seed {r['seed']} ({r['path']}): {m}" for r in runs for m in r["failed"]]
+    raw["failed"] = failed
+    if failed:
+        parts.append("failed solves (counted as losses):\n  " + "\n  ".join(failed))
+    return "\n\n".join(parts), raw
+
+
+def run(quick: bool, runs: int | None = None, workers: int = 1) -> dict:
+    runs = runs or (2 if quick else 50)
+    duration = 15.0 if quick else DURATION
+    jobs = [(fault, seed, duration) for fault in FAULTS for seed in range(runs)]
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            results = list(pool.map(one_run, jobs))
+    else:
+        results = [one_run(job) for job in jobs]
+    text, raw = report(results)
+    head = f"wheels on simulation: {runs} runs per class, {duration:.0f} s each (paths {', '.join(PATHS)} in turn)"
+    return {"text": f"{head}\n\n{text}", "raw": raw, "runs": results}
+
+
+def summary(results: dict) -> list[str]:
+    lines = []
+    for fault in FAULTS:
+        d = results["raw"][fault]["position"]
+        lines.append(f"wheels sim {fault}: graph best in {d['graph_best']}/{d['runs']} runs (final position), "
+                     f"graph / best rule median {d['ratio_median']:.2f}, worst {d['ratio_worst']:.2f}")
+    return lines
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--runs", type=int, help="runs per fault class (default 50; --quick 2)")
+    ap.add_argument("--workers", type=int, default=1, help="processes")
+    args = ap.parse_args()
+    print(run(args.quick, args.runs, args.workers)["text"])

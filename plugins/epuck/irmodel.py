@@ -1,0 +1,123 @@
+"""The e-puck's IR proximity sensors (docs/models/epuck.md#ir-sensor-model): the mean reading and its
+variance as functions of the distance d (m) from the sensor along its axis to the nearest wall.
+
+Each is a Gaussian sum in x = d / unit (the published fits use unit = 1 cm):
+
+    F(x) = sum_j a_j exp(-((x - b_j) / c_j)^2)
+
+fitted on [d_min, d_max]. Outside that range the functions are continued so that an estimate which
+wanders out of it still feels a gradient: the mean exponentially beyond d_max (positive and C1: the
+value and slope at d_max; it decays to 0 at infinity) and linearly below d_min (C1); the variance is
+held at its end values. Readings are raw counts. All functions take the distances of many sensors at
+once: arrays whose last axis is the sensor (a `Bank` holds every sensor's coefficients, zero-padded
+to one number of terms)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+GRID = 701  # points on [d_min, d_max] for the variance floor, the peaks and the inverse lookup
+
+
+def gaussian_sum(terms: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """F(x) and dF/dx of Gaussian sums: `terms` (S, J, 3) rows (a, b, c) per sensor, x (..., S)."""
+    a, b, c = terms[..., 0], terms[..., 1], terms[..., 2]
+    u = (np.asarray(x, float)[..., None] - b) / c
+    e = a * np.exp(-u * u)
+    return e.sum(-1), (-2.0 * u / c * e).sum(-1)
+
+
+def stack_terms(per_sensor: list[list[list[float]]]) -> np.ndarray:
+    """(S, J, 3) coefficients, shorter sums padded with zero terms (a = 0, c = 1)."""
+    width = max(len(t) for t in per_sensor)
+    out = np.zeros((len(per_sensor), width, 3))
+    out[..., 2] = 1.0
+    for i, t in enumerate(per_sensor):
+        out[i, :len(t)] = np.asarray(t, float).reshape(-1, 3)
+    return out
+
+
+@dataclass
+class Evaluation:
+    """Mean reading, variance and their derivatives with respect to d (per m), at distances d."""
+
+    mean: np.ndarray
+    dmean: np.ndarray
+    var: np.ndarray
+    dvar: np.ndarray
+
+
+class Bank:
+    """The sensor models of several IR sensors: mean and variance Gaussian sums per sensor, the distance
+    unit of their x (m), and the range [d_min, d_max] (m) they were fitted on."""
+
+    def __init__(self, mean_terms: list, var_terms: list, unit: float, d_min: float, d_max: float):
+        self.mean_terms, self.var_terms = stack_terms(mean_terms), stack_terms(var_terms)
+        self.unit, self.d_min, self.d_max = float(unit), float(d_min), float(d_max)
+        self.size = len(self.mean_terms)
+        ends = np.array([[d_min] * self.size, [d_max] * self.size])
+        m, dm = self._mean_inside(ends)
+        v, _ = self._var_inside(ends)
+        self.mean_lo, self.slope_lo, self.mean_hi = m[0], dm[0], m[1]
+        self.rate_hi = dm[1] / m[1]  # 1/m: the exponential continuation's rate (negative)
+        self.var_lo, self.var_hi = v[0], v[1]
+        grid = np.linspace(d_min, d_max, GRID)
+        self.grid = grid
+        self.grid_mean = self._mean_inside(np.repeat(grid[:, None], self.size, 1))[0]   # (GRID, S)
+        self.grid_var = self._var_inside(np.repeat(grid[:, None], self.size, 1))[0]
+        self.var_floor = 0.9 * self.grid_var.min(axis=0)  # below every variance the model gives
+        self.peak = self.grid_mean.argmax(axis=0)           # the mean decreases beyond its peak
+        self.near_threshold = self.grid_mean.max(axis=0)    # a reading above: closer than d_min (or saturated)
+        self.far_threshold = self.mean_hi.copy()            # a reading below: nothing within d_max
+
+    def _mean_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+        f, df = gaussian_sum(self.mean_terms[sensor], d / self.unit)
+        return f, df / self.unit
+
+    def _var_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+        f, df = gaussian_sum(self.var_terms[sensor], d / self.unit)
+        return f, df / self.unit
+
+    def evaluate(self, d: np.ndarray, sensor: np.ndarray | None = None) -> Evaluation:
+        """The model at distances d in m (inf: nothing along the axis: mean 0): d (..., S) for every
+        sensor, or d (R,) of the sensors `sensor` (R,)."""
+        d = np.asarray(d, float)
+        s = slice(None) if sensor is None else np.asarray(sensor)
+        inside = np.clip(d, self.d_min, self.d_max)
+        m, dm = self._mean_inside(inside, s)
+        v, dv = self._var_inside(inside, s)
+        below, above = d < self.d_min, d > self.d_max
+        mean_hi, rate_hi = self.mean_hi[s], self.rate_hi[s]
+        with np.errstate(invalid="ignore", over="ignore"):
+            far = np.where(np.isfinite(d), mean_hi * np.exp(rate_hi * (d - self.d_max)), 0.0)
+        m = np.where(below, self.mean_lo[s] + self.slope_lo[s] * (d - self.d_min), np.where(above, far, m))
+        dm = np.where(below, self.slope_lo[s], np.where(above, rate_hi * far, dm))
+        v = np.where(below, self.var_lo[s], np.where(above, self.var_hi[s], v))
+        dv = np.where(below | above, 0.0, dv)
+        return Evaluation(m, dm, v, dv)
+
+    def inverse(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (m) whose mean reading is z (..., S) and its 1-sigma sigma(d) / |dF/dd| (m), on the
+        branch of each sensor's mean from its peak to d_max; where the fitted mean is not monotone
+        there (IR3's published fit rises by 0.3 counts between 4.3 and 4.5 cm) the first distance at
+        which it falls to z. nan where z is outside the branch's readings (nothing in range, or
+        closer than the branch)."""
+        z = np.asarray(z, float)
+        shape = np.broadcast_shapes(z.shape, (self.size,))
+        z = np.broadcast_to(z, shape)
+        d = np.full(shape, np.nan)
+        for s in range(self.size):
+            branch = slice(self.peak[s], None)
+            envelope = np.minimum.accumulate(self.grid_mean[branch, s])   # non-increasing
+            m, g = envelope[::-1], self.grid[branch][::-1]
+            zs = z[..., s]
+            ok = (zs >= m[0]) & (zs <= m[-1])
+            d[..., s] = np.where(ok, np.interp(zs, m, g), np.nan)
+        for _ in range(3):  # Newton on the exact model where it is monotone (the grid is good to ~1e-6 m)
+            e = self.evaluate(np.where(np.isnan(d), self.d_max, d))
+            step = np.where(e.dmean < 0, (e.mean - z) / np.where(e.dmean < 0, e.dmean, -1.0), 0.0)
+            d = np.clip(d - np.clip(step, -1e-4, 1e-4), self.grid[self.peak], self.d_max)
+        e = self.evaluate(np.where(np.isnan(d), self.d_max, d))
+        return d, np.sqrt(e.var) / np.abs(e.dmean)

@@ -1,0 +1,31 @@
+"""`uwb.sim` with lagging ranging (`time_offset: {ranges: s}`): the range stamped t measures the tag at
+t + offset, and the written config estimates each robot's offset."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fusionkit_plugins.uwb.simulator import LEVER_ARM, ROOM, UwbSimulator, lissajous
+
+SIM = UwbSimulator()
+QUIET = {"range_sigma": 0.0, "bias_sigma": 0.0, "bias_drift": 0.0, "wheel_sigma": 0.0, "duration": 5.0}
+
+
+def test_range_stamped_t_measures_the_tag_at_t_plus_the_offset():
+    p = SIM._params({**QUIET, "time_offset": {"ranges": -0.05}})
+    out = SIM.simulate(p, np.random.default_rng(0))
+    ranges = out.streams["ranges_a"]
+    pos, heading = lissajous(ranges.t - 0.05, 0.0, np.asarray(ROOM, float))
+    b = np.asarray(LEVER_ARM)
+    tag = pos + np.column_stack([np.cos(heading) * b[0] - np.sin(heading) * b[1],
+                                 np.sin(heading) * b[0] + np.cos(heading) * b[1]])
+    expected = np.linalg.norm(tag[:, None, :] - np.asarray(ROOM)[None], axis=2)
+    assert np.abs(ranges.values - expected).max() < 1e-12
+    assert out.truth_calibration["a"]["uwb_time_offset"]["value"] == -0.05
+
+
+def test_lagging_ranges_are_estimated_by_the_written_config():
+    p = SIM._params({"time_offset": {"ranges": -0.05}})
+    assert SIM.robots(p)["a"]["parameters"]["uwb_time_offset"]["sigma"] == 1.0
+    entry = next(f for f in SIM.config(p)["factors"] if f["type"] == "uwb.range")
+    assert entry["time_offset"] == {"parameter": "uwb_time_offset"}
