@@ -49,8 +49,13 @@ def registered_document(name: str, reg, where: Document, path: tuple) -> Documen
     return parse_yaml(file.read_text(encoding="utf-8"), str(file))
 
 
-def robot_description_data(name: str) -> dict:
+def robot_description_data(name: str, model: str | None = None, user: str = "") -> dict:
     """The robot description a plugin registered as `name`, as a fresh dict (a simulator's
-    `robots()` may change it and return it)."""
+    `robots()` may change it and return it). With `model`: a ConfigError, naming `user` (e.g. the
+    simulator), unless the description is of that robot model."""
     from ..plugins import registry
-    return yaml.load(registered_file(name, registry()).read_text(encoding="utf-8"), Loader=SafeLoader)  # noqa: S506
+    data = yaml.load(registered_file(name, registry()).read_text(encoding="utf-8"), Loader=SafeLoader)  # noqa: S506
+    if model is not None and data.get("model") != model:
+        raise ConfigError(f"{user + ': ' if user else ''}description {name!r} is a {data.get('model', 'generic')!r} "
+                          f"robot; expected a {model} one")
+    return data

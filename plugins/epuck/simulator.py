@@ -159,19 +159,11 @@ class EpuckSimulator(Simulator):
 
 
 def _description(params: dict) -> dict:
-    data = robot_description_data(params["description"])
-    if data.get("model") != "epuck":
-        raise ConfigError(f"epuck.sim: description {params['description']!r} is a {data.get('model', 'generic')!r} "
-                          "robot; expected an epuck one")
-    return data
+    return robot_description_data(params["description"], "epuck", "epuck.sim")
 
 
 def _arena(params: dict) -> dict:
-    data = robot_description_data(params["arena"])
-    if data.get("model") != "wall_map":
-        raise ConfigError(f"epuck.sim: arena {params['arena']!r} is a {data.get('model', 'generic')!r} description; "
-                          "expected a wall_map")
-    return data
+    return robot_description_data(params["arena"], "wall_map", "epuck.sim")
 
 
 SIMULATORS = [EpuckSimulator]

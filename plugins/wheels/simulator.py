@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, ConfigError, Simulator, SourceOutput, Stream,
+from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, Simulator, SourceOutput, Stream,
                            pose_stream, robot_description_data, sample_times)
 
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, PASSIVE_RADIUS, RADIUS, RADIUS_LEFT, RADIUS_RIGHT
@@ -309,11 +309,7 @@ def _camera(camera: dict, t: np.ndarray, poses: np.ndarray, rng: np.random.Gener
 
 def _shipped(params: dict) -> dict:
     """The registered diff_drive description `params` names (a fresh dict); ConfigError otherwise."""
-    data = robot_description_data(params["description"])
-    if data.get("model") != "diff_drive":
-        raise ConfigError(f"wheels.sim: description {params['description']!r} is a {data.get('model', 'generic')!r} "
-                          "robot; wheels.sim needs a diff_drive one")
-    return data
+    return robot_description_data(params["description"], "diff_drive", "wheels.sim")
 
 
 SIMULATORS = [WheelsSimulator]

@@ -108,3 +108,10 @@ def test_the_reference_lists_every_shipped_description_with_its_summary():
     text = (REPO / "docs" / "reference" / "robot_description.md").read_text()
     rows = dict(re.findall(r"^\| `(\w+)` \| \w+ \| \w+ \| (.+) \|$", text, re.M))
     assert rows == {n: robot_description_data(n)["summary"] for n in registry().names("robot_descriptions")}
+
+
+def test_a_shipped_description_of_another_model_is_one_located_config_error():
+    assert robot_description_data("epuck", "epuck")["model"] == "epuck"
+    with pytest.raises(ConfigError, match=r"^wheels.sim: description 'epuck' is a 'epuck' robot; expected a "
+                                          r"diff_drive one$"):
+        robot_description_data("epuck", "diff_drive", "wheels.sim")
