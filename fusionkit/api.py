@@ -26,13 +26,15 @@ from .robots.description import Parameter, RobotDescription, Sensor
 from .robots.checked import load_robot_description
 from .robots.registered import robot_description_data, robot_description_files
 from .report.writer import check_output_folder, write_output_folder
-from .models.simulation import POSE_NOISE_SCHEMA, noisy, odometry, sample_times, smooth_trajectory
+from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, noisy, odometry, sample_times,
+                                smooth_trajectory)
 from .testing import FactorExample
 
 API_VERSION = "1.3"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
-# 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index
+# 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
+#      CLOCK_SCHEMA and clock_times (simulated clock drift)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -56,4 +58,5 @@ __all__ = [
     "differential_drive_twist",
     # simulator building blocks and the factor contract
     "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",
+    "CLOCK_SCHEMA", "clock_times",
 ]

@@ -10,6 +10,10 @@ from scipy.spatial.transform import Rotation
 from ..graph.noise import pose_sigma_schema
 
 POSE_NOISE_SCHEMA = pose_sigma_schema(allow_zero=True)  # a simulated pose noise level; 0 = noiseless
+# a simulated stream's clock: an offset (s), or {offset: s, rate: s/s} (docs/models/unified_graph.md#time-offsets)
+CLOCK_SCHEMA = {"oneOf": [{"type": "number"},
+                          {"type": "object", "properties": {"offset": {"type": "number"}, "rate": {"type": "number"}},
+                           "required": ["offset"], "additionalProperties": False}]}
 
 
 def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarray,
@@ -48,3 +52,11 @@ def odometry(poses: list[gtsam.Pose3], sigma: dict, rng: np.random.Generator,
 def sample_times(duration: float, rate: float) -> np.ndarray:
     """Sample times (s) of a `duration`-second recording at `rate` Hz, starting at 0."""
     return np.arange(int(round(duration * rate))) / rate
+
+
+def clock_times(clock: float | dict, t: np.ndarray) -> np.ndarray:
+    """When the samples a stream's clock (CLOCK_SCHEMA) stamps `t` were taken on the true clock (s):
+    t + offset + rate (t - t[0])."""
+    if not isinstance(clock, dict):
+        return t + float(clock)
+    return t + float(clock["offset"]) + float(clock.get("rate", 0.0)) * (t - t[0])

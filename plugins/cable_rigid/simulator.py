@@ -13,7 +13,10 @@ of roll/pitch/yaw.
 `time_offset: {lengths: s, tensions: s}`: the encoder (force sensor) sample stamped t reads the robot
 at t + offset on the motion-capture and VO clock (fusionkit's sign convention,
 docs/models/unified_graph.md#time-offsets: encoders lagging by 30 ms is `lengths: -0.03`); with a `lengths` offset the description gains an
-`encoder_time_offset` parameter (0 +- 1 s) and the config estimates it.
+`encoder_time_offset` parameter (0 +- 1 s) and the config estimates it. A stream's clock may also run at a
+wrong rate: `{lengths: {offset: s, rate: s/s}}` makes the sample stamped t read the robot at
+t + offset + rate (t - t0) (t0: the first sample); a `lengths` rate adds an `encoder_clock_rate` parameter
+(0 +- 0.01 s/s) that the config estimates too.
 
 `motion: dynamic` (sequence 01): the commanded, quasi-static trajectory gives the cable lengths
 the encoders read and the tensions; the true end-effector additionally swings like a damped
@@ -35,13 +38,14 @@ import numpy as np
 from scipy.optimize import brentq, nnls
 from scipy.spatial.transform import Rotation
 
-from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, odometry, pose_stream, poses_from_array,
-                           robot_description_data, sample_times, Simulator, SourceOutput, Stream)
+from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, ConfigError, clock_times, noisy, odometry, pose_stream,
+                           poses_from_array, robot_description_data, sample_times, Simulator, SourceOutput, Stream)
 from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
 
 GRAVITY = 9.81
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
 ENCODER_OFFSET = "encoder_time_offset"  # the description's parameter when the encoders are simulated lagging (s)
+ENCODER_RATE = "encoder_clock_rate"  # ... and when their clock also runs at a wrong rate (s/s)
 
 POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 NONNEG = {"type": "number", "minimum": 0}
@@ -299,8 +303,7 @@ class CdprSimulator(Simulator):
                              "swing_amplitude": NONNEG, "swing_frequency": POSITIVE,
                              "swing_damping": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 1},
                              "time_offset": {"type": "object", "additionalProperties": False,
-                                             "properties": {"lengths": {"type": "number"},
-                                                            "tensions": {"type": "number"}}}},
+                                             "properties": {"lengths": CLOCK_SCHEMA, "tensions": CLOCK_SCHEMA}}},
               "additionalProperties": False}
     defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
                 "pulley_error": 0.05, "coplanar_pulleys": True,
@@ -311,6 +314,12 @@ class CdprSimulator(Simulator):
 
     def _params(self, params: dict) -> dict:
         return _merged(self.defaults, params)
+
+    @staticmethod
+    def _encoder_rate(params: dict) -> bool:
+        """Whether the encoders' clock has a rate error (the description and config then gain ENCODER_RATE)."""
+        raw = params["time_offset"].get("lengths")
+        return isinstance(raw, dict) and "rate" in raw
 
     @staticmethod
     def _lagged(desc: dict, geo: Geometry, t: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
@@ -349,8 +358,7 @@ class CdprSimulator(Simulator):
         tension = static_tensions(plan.pos, plan.rot, geo)
         length, _ = cable_vectors(plan.pos, plan.rot, geo)
         offsets = -encoder_readings(length[0], tension[0], np.zeros(geo.n), geo.stiffness_EA)
-        shifted = {dt: self._lagged(desc, geo, t + dt, span) for dt in set(p["time_offset"].values())}
-        lag = {name: shifted[dt] for name, dt in p["time_offset"].items()}
+        lag = {name: self._lagged(desc, geo, clock_times(clock, t), span) for name, clock in p["time_offset"].items()}
         z = encoder_readings(*lag.get("lengths", (length, tension)), offsets, geo.stiffness_EA)
         z = z + rng.normal(0.0, p["encoder_sigma"], z.shape)
         tension = lag["tensions"][1] if "tensions" in lag else tension
@@ -381,8 +389,12 @@ class CdprSimulator(Simulator):
         calibration = {ROBOT_NAME: {"pulley": {"type": "point3", "values": true_pulleys.tolist()},
                                     "offset": {"type": "scalar", "values": offsets.tolist()},
                                     "vo_scale": {"type": "scalar", "value": float(p["scale"])}}}
-        if "lengths" in p["time_offset"]:
-            calibration[ROBOT_NAME][ENCODER_OFFSET] = {"type": "scalar", "value": float(p["time_offset"]["lengths"])}
+        encoders = p["time_offset"].get("lengths")
+        if encoders is not None:
+            offset = encoders["offset"] if isinstance(encoders, dict) else encoders
+            calibration[ROBOT_NAME][ENCODER_OFFSET] = {"type": "scalar", "value": float(offset)}
+        if self._encoder_rate(p):
+            calibration[ROBOT_NAME][ENCODER_RATE] = {"type": "scalar", "value": float(encoders["rate"])}
         return SourceOutput(streams, {ROBOT_NAME: pose_stream(ROBOT_NAME, t, truth_arr, "simulated:truth")},
                             calibration)
 
@@ -402,7 +414,16 @@ class CdprSimulator(Simulator):
         desc["parameters"].setdefault("vo_scale", {"type": "scalar", "value": 1.0, "sigma": 10.0})
         if "lengths" in p["time_offset"]:
             desc["parameters"][ENCODER_OFFSET] = {"type": "scalar", "value": 0.0, "sigma": 1.0, "unit": "s"}
+        if self._encoder_rate(p):
+            desc["parameters"][ENCODER_RATE] = {"type": "scalar", "value": 0.0, "sigma": 0.01, "unit": "s/s"}
         return {ROBOT_NAME: desc}
+
+    def _encoder_time_offset(self, params: dict) -> dict:
+        """The cable.length entry's `time_offset:` when the encoders are simulated on their own clock."""
+        if "lengths" not in params["time_offset"]:
+            return {}
+        rate = {"rate": ENCODER_RATE} if self._encoder_rate(params) else {}
+        return {"time_offset": {"parameter": ENCODER_OFFSET, **rate}}
 
     def home_pose(self, params: dict) -> list[float]:
         """The true home pose [x, y, z, qx, qy, qz, qw]: the zero pose the user picks."""
@@ -443,7 +464,7 @@ class CdprSimulator(Simulator):
                  "sigma": vo_sigma},
                 {"type": "cable.length", "robot": ROBOT_NAME, "stream": "lengths",
                  "sigma": max(p["encoder_sigma"], 1e-4),
-                 **({"time_offset": {"parameter": ENCODER_OFFSET}} if "lengths" in p["time_offset"] else {})}],
+                 **self._encoder_time_offset(p)}],
             "initializers": self.initializers(p),
             "solver": {"type": "batch", "method": "lm"}}
 

@@ -14,7 +14,9 @@ description has no anchor sigma, the estimate is in the anchor frame (anchor 0 a
 
 `time_offset: {ranges: s}`: the range sample stamped t measures the tag at t + offset on the wheels' (and the
 states') clock (fusionkit's sign convention, docs/models/unified_graph.md#time-offsets: ranging that lags by
-50 ms is `ranges: -0.05`); the config then estimates each robot's `uwb_time_offset`.
+50 ms is `ranges: -0.05`); the config then estimates each robot's `uwb_time_offset`. A drifting ranging clock:
+`{ranges: {offset: s, rate: s/s}}`, the tag at t + offset + rate (t - t0) (t0: the first sample); the config
+then also estimates each robot's `uwb_clock_rate` (0 +- 0.01 s/s).
 
 Streams: `ranges_<r>` (t, r0..r{n-1}), `wheels_<r>` (t, v_right, v_left), `bias_<r>` (the true
 biases, t, b0..), `tag_ranges` (two robots); truth: each robot's trajectory and the anchors.
@@ -24,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import pose_stream, sample_times, Simulator, SourceOutput, Stream
+from fusionkit.api import CLOCK_SCHEMA, clock_times, pose_stream, sample_times, Simulator, SourceOutput, Stream
 
 ROBOT_NAMES = ("a", "b")
 ANCHORS = "anchors"
@@ -80,7 +82,7 @@ class UwbSimulator(Simulator):
                                                  "items": {"type": "integer", "minimum": 0, "maximum": len(ROOM) - 1}},
                              "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
                              "bias_model": {"enum": ["none", "constant", "time_varying"]},
-                             "time_offset": {"type": "object", "properties": {"ranges": {"type": "number"}},
+                             "time_offset": {"type": "object", "properties": {"ranges": CLOCK_SCHEMA},
                                              "additionalProperties": False}},
               "additionalProperties": False}
     defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
@@ -116,9 +118,8 @@ class UwbSimulator(Simulator):
             tag = pos + np.column_stack([c * b[0] - s * b[1], s * b[0] + c * b[1]])
             tags[r] = tag
             dt = 1.0 / p["rate"]
-            lag = p["time_offset"].get("ranges", 0.0)
-            if lag:  # the ranges see the tag at their stamp + lag
-                pos_m, heading_m = lissajous(t + lag, 1.3 * j, anchors)
+            if "ranges" in p["time_offset"]:  # the ranges see the tag at their stamp + offset (+ drift)
+                pos_m, heading_m = lissajous(clock_times(p["time_offset"]["ranges"], t), 1.3 * j, anchors)
                 tag_m = pos_m + np.column_stack([np.cos(heading_m) * b[0] - np.sin(heading_m) * b[1],
                                                  np.sin(heading_m) * b[0] + np.cos(heading_m) * b[1]])
             else:
@@ -142,10 +143,20 @@ class UwbSimulator(Simulator):
             d = np.linalg.norm(tags["a"] - tags["b"], axis=1) + rng.normal(0.0, p["range_sigma"], len(t))
             streams["tag_ranges"] = Stream("tag_ranges", t, ("range",), d[:, None], "simulated:tag_ranges")
         calibration = {ANCHORS: {"anchor": {"type": "point2", "values": anchors.tolist()}}}
-        if "ranges" in p["time_offset"]:
-            calibration.update({r: {"uwb_time_offset": {"type": "scalar", "value": float(p["time_offset"]["ranges"])}}
-                                for r in ROBOT_NAMES[:p["robots"]]})
+        clock = p["time_offset"].get("ranges")
+        if clock is not None:
+            offset = clock["offset"] if isinstance(clock, dict) else clock
+            truth_clock = {"uwb_time_offset": {"type": "scalar", "value": float(offset)}}
+            if self._ranging_rate(p):
+                truth_clock["uwb_clock_rate"] = {"type": "scalar", "value": float(clock["rate"])}
+            calibration.update({r: dict(truth_clock) for r in ROBOT_NAMES[:p["robots"]]})
         return SourceOutput(streams, truth, calibration)
+
+    @staticmethod
+    def _ranging_rate(params: dict) -> bool:
+        """Whether the ranging clock has a rate error (descriptions and config then gain `uwb_clock_rate`)."""
+        raw = params["time_offset"].get("ranges")
+        return isinstance(raw, dict) and "rate" in raw
 
     def robots(self, params: dict) -> dict[str, dict]:
         p = self._params(params)
@@ -172,6 +183,8 @@ class UwbSimulator(Simulator):
                 desc["parameters"]["uwb_scale"] = {"type": "scalar", "value": 0.0, "sigma": 0.1}
             if "ranges" in p["time_offset"]:
                 desc["parameters"]["uwb_time_offset"] = {"type": "scalar", "value": 0.0, "sigma": 1.0, "unit": "s"}
+            if self._ranging_rate(p):
+                desc["parameters"]["uwb_clock_rate"] = {"type": "scalar", "value": 0.0, "sigma": 0.01, "unit": "s/s"}
             out[r] = desc
         return out
 
@@ -194,7 +207,8 @@ class UwbSimulator(Simulator):
             if p["scale_error"]:
                 rng_entry["scale"] = "uwb_scale"
             if "ranges" in p["time_offset"]:
-                rng_entry["time_offset"] = {"parameter": "uwb_time_offset"}  # from 0: range rates and wheel
+                rng_entry["time_offset"] = {"parameter": "uwb_time_offset",  # from 0: range rates and wheel
+                                            **({"rate": "uwb_clock_rate"} if self._ranging_rate(p) else {})}
                 # speeds see the motion differently (a range's rate depends on the direction), no guess from them
             factors.append(rng_entry)
             if p["bias_model"] == "time_varying":

@@ -180,6 +180,24 @@ def test_a_drifting_offset_and_a_clock_rate_error_are_estimated_within_their_sig
         assert abs(params[name].values[0] - truth) < 3 * params[name].sigma[0][0], name
 
 
+def test_a_linearly_drifting_offset_is_followed_by_a_random_walk_at_start_and_end(workspace):
+    """The motion-capture clock's offset grows linearly from 20 to 40 ms over the 6 s (not a random walk: the
+    walk's 0.01 s/sqrt(s) is the estimator's allowance, not the generator's); the time-varying offset is
+    read at each sample's nearest state and recovered within 3 sigma at the first and the last state, far
+    from the constant it would be without the walk."""
+    t = np.arange(int(DURATION * RATE)) / RATE
+    lag = 0.02 + 0.02 * t[::MOCAP_EVERY] / DURATION
+    cfg = offset_config(workspace, lag, {"type": "batch"})
+    workspace.config({"name": "r", "parameters": {
+        "clock": {"type": "scalar", "value": 0.0, "sigma": 0.5, "time_varying": True}}}, "robot.yaml")
+    cfg["factors"].append({"type": "parameter.random_walk", "robot": "r", "parameter": "clock", "sigma": 0.01})
+    clock = estimate(load_config(workspace.config(cfg))).parameters["r"]["clock"]
+    values, sigma = np.asarray(clock.values), clock.sigma[:, 0]
+    for k, truth in ((0, 0.02), (-1, 0.02 + 0.02 * t[-1] / DURATION)):
+        assert abs(values[k] - truth) < 3 * sigma[k], (k, values[k], truth, sigma[k])
+    assert values[-1] - values[0] > 0.015
+
+
 def test_the_offset_brings_the_fit_to_the_noise_which_it_is_far_from_without(workspace):
     cfg = offset_config(workspace, 0.03, {"type": "batch"})
     fitted = estimate(load_config(workspace.config(cfg))).solution.chi2_per_dof

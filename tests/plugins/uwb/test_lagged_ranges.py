@@ -1,5 +1,6 @@
-"""`uwb.sim` with lagging ranging (`time_offset: {ranges: s}`): the range stamped t measures the tag at
-t + offset, and the written config estimates each robot's offset."""
+"""`uwb.sim` with lagging ranging (`time_offset: {ranges: s}`, or `{ranges: {offset: s, rate: s/s}}` for a drifting
+clock): the range stamped t measures the tag at t + offset (+ rate (t - t0)), and the written config estimates
+each robot's offset (and clock rate)."""
 
 from __future__ import annotations
 
@@ -29,3 +30,24 @@ def test_lagging_ranges_are_estimated_by_the_written_config():
     assert SIM.robots(p)["a"]["parameters"]["uwb_time_offset"]["sigma"] == 1.0
     entry = next(f for f in SIM.config(p)["factors"] if f["type"] == "uwb.range")
     assert entry["time_offset"] == {"parameter": "uwb_time_offset"}
+
+
+def test_drifting_ranging_clock_reads_the_tag_at_stamp_plus_offset_plus_rate_and_the_config_names_the_rate():
+    """`{ranges: {offset, rate}}`: the range stamped t measures the tag at t + offset + rate (t - t0); the truth,
+    the descriptions and the written config carry `uwb_clock_rate`."""
+    clock = {"offset": -0.05, "rate": 1.0e-3}
+    p = SIM._params({**QUIET, "time_offset": {"ranges": clock}})
+    out = SIM.simulate(p, np.random.default_rng(0))
+    ranges = out.streams["ranges_a"]
+    t = ranges.t - 0.05 + 1.0e-3 * (ranges.t - ranges.t[0])
+    pos, heading = lissajous(t, 0.0, np.asarray(ROOM, float))
+    b = np.asarray(LEVER_ARM)
+    tag = pos + np.column_stack([np.cos(heading) * b[0] - np.sin(heading) * b[1],
+                                 np.sin(heading) * b[0] + np.cos(heading) * b[1]])
+    expected = np.linalg.norm(tag[:, None, :] - np.asarray(ROOM)[None], axis=2)
+    assert np.abs(ranges.values - expected).max() < 1e-12
+    assert out.truth_calibration["a"]["uwb_clock_rate"]["value"] == 1.0e-3
+    assert out.truth_calibration["a"]["uwb_time_offset"]["value"] == -0.05
+    assert SIM.robots(p)["a"]["parameters"]["uwb_clock_rate"]["value"] == 0.0
+    entry = next(f for f in SIM.config(p)["factors"] if f["type"] == "uwb.range")
+    assert entry["time_offset"] == {"parameter": "uwb_time_offset", "rate": "uwb_clock_rate"}
