@@ -21,6 +21,7 @@ See benchmarks/README.md.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import platform
 import subprocess
@@ -34,8 +35,8 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real", "wheels_speed", "wheels_sim",
-            "time_offset", "epuck", "busy_core")
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real",
+            "wheels_speed", "wheels_sim", "time_offset", "epuck", "busy_core")
 
 
 def _git(*args: str) -> str:
@@ -68,6 +69,11 @@ def header(quick: bool) -> str:
     ])
 
 
+def bench_module(section: str):
+    """The module of a section: benchmarks/bench_<section>.py."""
+    return importlib.import_module(f"bench_{section}")
+
+
 def summary(results: dict) -> str:
     lines = ["summary (target: fusionkit / hand-written <= 1.2)", "=" * 50]
     if "factors" in results:
@@ -92,36 +98,9 @@ def summary(results: dict) -> str:
         lines.append(f"scaled_vo: estimate {q['estimate'] * 1e3:.0f} ms = read {q['read'] * 1e3:.0f} + build "
                      f"{q['build'] * 1e3:.0f} + optimizer {q['optimizer'] * 1e3:.0f} + checks/marginals "
                      f"{(q['solve'] - q['optimizer']) * 1e3:.0f} + post {q['post'] * 1e3:.0f}")
-    if "cable_rigid" in results:
-        import bench_cable_rigid
-        lines += bench_cable_rigid.summary(results["cable_rigid"])
-    if "cable_sag" in results:
-        import bench_cable_sag
-        lines += bench_cable_sag.summary(results["cable_sag"])
-    if "uwb" in results:
-        import bench_uwb
-        lines += bench_uwb.summary(results["uwb"])
-    if "serial_arm" in results:
-        import bench_serial_arm
-        lines += bench_serial_arm.summary(results["serial_arm"])
-    if "wheels_real" in results:
-        import bench_wheels_real
-        lines += bench_wheels_real.summary(results["wheels_real"])
-    if "wheels_speed" in results:
-        import bench_wheels_speed
-        lines += bench_wheels_speed.summary(results["wheels_speed"])
-    if "wheels_sim" in results:
-        import bench_wheels_sim
-        lines += bench_wheels_sim.summary(results["wheels_sim"])
-    if "time_offset" in results:
-        import bench_time_offset
-        lines += bench_time_offset.summary(results["time_offset"])
-    if "epuck" in results:
-        import bench_epuck
-        lines += bench_epuck.summary(results["epuck"])
-    if "busy_core" in results:
-        import bench_busy_core
-        lines += bench_busy_core.summary(results["busy_core"])
+    for name in SECTIONS[SECTIONS.index("cable_rigid"):]:  # these sections summarize themselves
+        if name in results:
+            lines += bench_module(name).summary(results[name])
     return "\n".join(lines)
 
 
@@ -135,24 +114,7 @@ def main(argv=None) -> int:
     if unknown:
         ap.error(f"unknown section(s) {', '.join(sorted(unknown))}; choose from {', '.join(SECTIONS)}")
 
-    import bench_batch
-    import bench_busy_core
-    import bench_cable_rigid
-    import bench_cable_sag
-    import bench_epuck
-    import bench_factors
-    import bench_isam2
-    import bench_scaled_vo
-    import bench_serial_arm
-    import bench_time_offset
-    import bench_uwb
-    import bench_wheels_real
-    import bench_wheels_sim
-    import bench_wheels_speed
-    modules = {"factors": bench_factors, "batch": bench_batch, "isam2": bench_isam2,
-               "scaled_vo": bench_scaled_vo, "cable_rigid": bench_cable_rigid, "cable_sag": bench_cable_sag, "uwb": bench_uwb,
-               "serial_arm": bench_serial_arm, "wheels_real": bench_wheels_real, "wheels_speed": bench_wheels_speed, "wheels_sim": bench_wheels_sim, "time_offset": bench_time_offset,
-               "epuck": bench_epuck, "busy_core": bench_busy_core}
+    modules = {name: bench_module(name) for name in SECTIONS}
 
     print(header(args.quick), flush=True)
     results, failed, start = {}, [], time.perf_counter()
