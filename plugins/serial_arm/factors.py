@@ -5,12 +5,12 @@ the sample index as their time."""
 
 from __future__ import annotations
 
+from abc import abstractmethod
 from functools import partial
 from pathlib import Path
 
 import gtsam
 import numpy as np
-
 from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
@@ -103,9 +103,9 @@ class ArmMeasurement(FactorType):
         a = ctx.associate(ctx.stream(spec["stream"]), spec["robot"], spec)
         return a.state, a.row
 
+    @abstractmethod
     def measured(self, stream, rows: np.ndarray) -> np.ndarray:
         """What EntryEvaluator compares with, for the stream rows of the samples."""
-        raise NotImplementedError
 
     def build(self, ctx, spec: Spec) -> None:
         """One factor per sample, all evaluated together by one EntryEvaluator."""
