@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fusionkit.api import differential_drive_twist
+
 V_THRES = 0.01        # m/s: V_mid and V_RL "agree" below this
 OMEGA_THRES = 0.05    # rad/s: a wheel-derived turn rate and the gyro "agree" below this
 D_OMEGA_THRES = 0.5   # rad/s: a change between two gyro samples above this is an impact
@@ -59,7 +61,7 @@ class WheelSteps:
     @property
     def rl(self) -> tuple[np.ndarray, np.ndarray]:
         """(V_RL, omega_RL): the driven wheels."""
-        return 0.5 * (self.right + self.left), (self.right - self.left) / self.axle_length
+        return differential_drive_twist(self.right, self.left, self.axle_length)
 
     @property
     def rm(self) -> tuple[np.ndarray, np.ndarray]:
