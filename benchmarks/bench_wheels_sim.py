@@ -26,7 +26,6 @@ solve that fails counts as a loss and is reported.
 from __future__ import annotations
 
 import argparse
-import sys
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
