@@ -2,11 +2,14 @@
 
     time_offset: {robot: cdpr, parameter: encoder_lag}             # a sample stamped t was taken at t + delta
     time_offset: {parameter: encoder_lag, rate: encoder_clock_rate}  # ... at t + delta + rho (t - t_ref)
+    time_offset: {parameter: mocap_lag, velocities: false}          # Pose3 states: ignore their velocities
 
 `parameter` (and `rate`) name scalar parameters (s, and s/s) of `robot` (default: the entry's `robot`),
 declared in its description with a value and a prior sigma like any calibration parameter (or
 `time_varying: true`, chained by a `parameter.random_walk` entry). Only factor types that pair their
-samples with states by stamp (their schema has `tolerance`) can take one.
+samples with states by stamp (their schema has `tolerance`) can take one. Pose3 states whose robot has
+per-state velocity3 variables (imu.preintegrated's) are interpolated with those velocities unless
+`velocities: false`.
 """
 
 from __future__ import annotations
@@ -19,7 +22,8 @@ from .interpolation import interpolable
 
 KEY = "time_offset"
 SCHEMA = {"type": "object",
-          "properties": {"robot": {"type": "string"}, "parameter": {"type": "string"}, "rate": {"type": "string"}},
+          "properties": {"robot": {"type": "string"}, "parameter": {"type": "string"}, "rate": {"type": "string"},
+                         "velocities": {"type": "boolean"}},
           "required": ["parameter"], "additionalProperties": False}
 
 
@@ -30,13 +34,14 @@ class TimeOffset:
     robot: str
     parameter: str
     rate: str | None = None
+    velocities: bool = True  # use the states' world-frame velocities where the robot has them
 
     @classmethod
     def of(cls, spec: Spec) -> "TimeOffset | None":
         raw = spec.get(KEY)
         if raw is None:
             return None
-        return cls(raw.get("robot") or spec["robot"], raw["parameter"], raw.get("rate"))
+        return cls(raw.get("robot") or spec["robot"], raw["parameter"], raw.get("rate"), raw.get("velocities", True))
 
     @property
     def label(self) -> str:
@@ -75,6 +80,10 @@ def check_time_offset(spec: Spec, factor_type: type, scope: CheckScope) -> None:
         if param.time_varying and not scope.states.get(robot):
             raise spec.error(path + (key,), f"parameter {name!r} is time-varying but robot {robot!r} has no states "
                              "to vary with")
+    if "velocities" in raw and scope.states.get(spec.get("robot"), {}).get("type", "pose3") != "pose3":
+        raise spec.error(path + ("velocities",), "only pose3 states are interpolated with velocities; robot "
+                         f"{spec.get('robot')!r} has {scope.states.get(spec.get('robot'), {}).get('type')} states "
+                         "(remove `velocities:`)")
     for key in factor_type.robot_fields:
         states = scope.states.get(spec.get(key)) if key in spec.data else None
         if states and not interpolable(vartype_named(states.get("type", "pose3"))):

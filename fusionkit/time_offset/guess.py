@@ -1,8 +1,9 @@
 """`time.offset_guess`: a first time offset from the data, before the graph refines it.
 
-Both streams see the same motion: a pose stream its speed (m/s), another stream the rate of change of its
-columns (cable lengths, ranges, joint angles; `signal: rate`), or the size of its values when they are
-rates already (wheel speeds, gyro; `signal: magnitude`), each averaged over `window` seconds (noise).
+Both streams see the same motion: a pose stream its speed (m/s) or turn rate (rad/s; `signal: turn_rate`),
+another stream the rate of change of its columns (cable lengths, ranges, joint angles; `signal: rate`), or
+the size of its values when they are rates already (wheel speeds, gyro; `signal: magnitude`), each averaged
+over `window` seconds (noise); `columns` / `reference_columns` pick the columns a signal uses (an IMU's gyro).
 With the sample stamped t taken at t + delta on the reference's clock, the stream's motion signal m_s(t) equals the reference's m_r(t + delta) up to a
 change of scale; delta is the shift that maximizes the correlation of the two standardized signals
 (searched on the finer stream's sampling interval over +-max_offset, refined by a parabola through the
@@ -20,27 +21,48 @@ from .. import hookimpl
 from ..components import Initializer, Spec
 from ..data.stream import POSE_COLUMNS, Stream
 
-SIGNALS = ("auto", "speed", "rate", "magnitude")
+SIGNALS = ("auto", "speed", "turn_rate", "rate", "magnitude")
 MIN_CORRELATION = 0.5  # below it the streams share too little motion for a guess
 
 
-def motion_signal(stream: Stream, how: str = "auto", window: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def motion_signal(stream: Stream, how: str = "auto", window: float = 1.0,
+                  columns: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(times, motion) of a stream, averaged over `window` seconds centred on each stamp (the same box filter
     for every stream, so it shifts none against another): `speed` (pose streams: |change of position| / window),
-    `rate` (|change of the values| / window over its columns) or `magnitude` (mean |values| over the window);
-    `auto`: speed for pose streams, else rate."""
+    `turn_rate` (pose streams: angle of the rotation over the window / window), `rate` (|change of the values|
+    / window over its columns) or `magnitude` (mean |values| over the window); `auto`: speed for pose
+    streams, else rate. `columns`: the columns `rate` and `magnitude` use (default: all)."""
     if how == "auto":
         how = "speed" if stream.is_pose else "rate"
     t, half = stream.t, 0.5 * window
     inner = (t - half >= t[0]) & (t + half <= t[-1])
     tc = t[inner]
+    if how == "turn_rate":
+        return tc, _turn_angles(stream, tc - half, tc + half) / window
+    values = stream.values if columns is None else stream.values[:, [stream.columns.index(c) for c in columns]]
     if how == "magnitude":  # box average: difference of the running integral
-        size = np.linalg.norm(stream.values, axis=1)
+        size = np.linalg.norm(values, axis=1)
         integral = np.concatenate([[0.0], np.cumsum(0.5 * (size[1:] + size[:-1]) * np.diff(t))])
         return tc, (np.interp(tc + half, t, integral) - np.interp(tc - half, t, integral)) / window
-    values = stream.values[:, [stream.columns.index(c) for c in POSE_COLUMNS[:3]]] if how == "speed" else stream.values
+    if how == "speed":
+        values = stream.values[:, [stream.columns.index(c) for c in POSE_COLUMNS[:3]]]
     change = np.column_stack([np.interp(tc + half, t, v) - np.interp(tc - half, t, v) for v in values.T])
     return tc, np.linalg.norm(change, axis=1) / window
+
+
+def _nearest(t: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Index of the stamp in `t` (increasing) nearest to each of `at`."""
+    upper = np.clip(np.searchsorted(t, at), 1, len(t) - 1)
+    return np.where(at - t[upper - 1] <= t[upper] - at, upper - 1, upper)
+
+
+def _turn_angles(stream: Stream, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Angle (rad) of the rotation between a pose stream's orientations at the times `start` and `end`
+    (each the nearest sample's: the streams this aligns are sampled far faster than the window)."""
+    quat = stream.values[:, [stream.columns.index(c) for c in POSE_COLUMNS[3:]]]
+    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    a, b = quat[_nearest(stream.t, start)], quat[_nearest(stream.t, end)]
+    return 2 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
 
 
 def _standardized(x: np.ndarray) -> np.ndarray:
@@ -93,20 +115,28 @@ class TimeOffsetGuess(Initializer):
                              "stream": {"type": "string"}, "reference": {"type": "string"},
                              "signal": {"enum": list(SIGNALS), "default": "auto"},
                              "reference_signal": {"enum": list(SIGNALS), "default": "auto"},
+                             "columns": {"type": "array", "items": {"type": "string"}, "minItems": 1},
+                             "reference_columns": {"type": "array", "items": {"type": "string"}, "minItems": 1},
                              "max_offset": {"type": "number", "exclusiveMinimum": 0, "default": 0.5},
                              "window": {"type": "number", "exclusiveMinimum": 0, "default": 1.0}},
               "required": ["robot", "parameter", "stream", "reference"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         scope.require_parameter(spec, "robot", "parameter", "scalar")
-        for key, signal in (("stream", "signal"), ("reference", "reference_signal")):
-            if spec[signal] == "speed":
+        for key, signal, columns in (("stream", "signal", "columns"),
+                                     ("reference", "reference_signal", "reference_columns")):
+            if spec[signal] in ("speed", "turn_rate"):
                 scope.require_columns(spec, key, POSE_COLUMNS)
+                if columns in spec.data:
+                    raise spec.error(columns, f"a {spec[signal]} signal uses the pose columns; remove `{columns}:`")
+            if columns in spec.data:
+                scope.require_columns(spec, key, tuple(spec[columns]))
 
     def initialize(self, ctx, spec: Spec) -> None:
         stream, reference = ctx.stream(spec["stream"]), ctx.stream(spec["reference"])
-        guess = correlate(motion_signal(stream, spec["signal"], spec["window"]),
-                          motion_signal(reference, spec["reference_signal"], spec["window"]), spec["max_offset"])
+        guess = correlate(motion_signal(stream, spec["signal"], spec["window"], spec.get("columns")),
+                          motion_signal(reference, spec["reference_signal"], spec["window"],
+                                        spec.get("reference_columns")), spec["max_offset"])
         robot, name = spec["robot"], spec["parameter"]
         param = ctx.robot(robot).parameters[name]
         head = (f"time offset {robot}/{name} of stream {stream.name!r} against {reference.name!r}: "

@@ -13,6 +13,12 @@ states x_{k-1}, x_k, x_{k+1}, x_{k+2} around the pair x_k, x_{k+1} that brackets
 (h.. the cubic Hermite basis; a missing neighbour at the window's or the trajectory's end makes that
 tangent the chord xi_{k+1}; with neither, x(s) = x_k Exp(s Log(x_k^-1 x_{k+1})), the geodesic). Pose3,
 pose2 and rot3 states use the group's Exp/Log; vectors and scalars the same formulas with x_k + xi.
+Pose3 states whose robot also has per-state world-frame velocities (a velocity3 variable per state, as
+imu.preintegrated declares them) use them: the rotation follows the same curve through the window's
+rotations, the position the cubic Hermite through p_k, p_{k+1} with the tangents (t_{k+1} - t_k) v_k and
+(t_{k+1} - t_k) v_{k+1} of the pair around the sample at build time (`_pose_velocity_curve`; two velocities
+per sample: four would tie each sample to eight state variables, and the marginals of such a graph cost
+many times the solve).
 The curve passes through the states and its velocity is continuous across them (to second order on a
 group): a piecewise-geodesic curve has a kink at every state, and with sample stamps commensurate with
 the state times all samples cross a kink at the same offset, which pulls the offset's estimate toward it.
@@ -151,7 +157,8 @@ class Timing:
 
 
 def _curve(ops, timing: Timing, states: list, tau: float):
-    """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval) of the curve through the window's states."""
+    """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval, {}) of the curve through the window's states (the
+    last: Jacobians with respect to velocities, which this curve does not use)."""
     j, s, interval = timing.pair(tau)
     anchor = states[j]
     omega = d_ds = dxi_da = 0.0
@@ -164,13 +171,51 @@ def _curve(ops, timing: Timing, states: list, tau: float):
         dxi_di[i] = c * d_state
     y, dy_da, dy_domega = ops.exp_from(anchor, np.asarray(omega, float))
     return (y, j, dy_da + dy_domega @ dxi_da, {i: dy_domega @ d for i, d in dxi_di.items()},
-            dy_domega @ np.asarray(d_ds, float), interval)
+            dy_domega @ np.asarray(d_ds, float), interval, {})
 
 
-def interpolate(vartype: VarType, window_t: np.ndarray, states: list, tau: float):
-    """The state at time tau on the curve through `states` at `window_t` (as the factor evaluates it)."""
+def _pose_velocity_curve(timing: Timing, poses: list, velocities: list, pair: int, tau: float):
+    """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval, {0, 1: dx/dv}) for Pose3 states with world-frame
+    velocities (m/s) `velocities` of the window's states `pair`, `pair` + 1: the rotation on the curve through
+    the window's rotations (pair j, fraction s, interval h), the position on the cubic Hermite
+    p(u) = h00 p_a + h01 p_b + g (h10 v_a + h11 v_b) through the states a = pair, b = pair + 1
+    (g = t_b - t_a, u = (tau - t_a) / g, outside [0, 1] when tau left that pair). Jacobians in Pose3's
+    right tangent (rotation, translation): a pose's rotation moves only the rotation, its translation
+    (R_i dt_i in the world) only the position, seen in the curve point's frame as R^T; dx/ds = h dx/dtau."""
+    R, j, dR_da, dR_di, dR_ds, h, _ = _curve(_LIE["rot3"], timing, [x.rotation() for x in poses], tau)
+    a, b = pair, pair + 1
+    g = timing.window_t[b] - timing.window_t[a]
+    u = (tau - timing.window_t[a]) / g
+    h00, h10, h01, h11 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u, -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+    d00, d10, d01, d11 = 6 * u ** 2 - 6 * u, 3 * u ** 2 - 4 * u + 1, -6 * u ** 2 + 6 * u, 3 * u ** 2 - 2 * u
+    pa, pb = poses[a].translation(), poses[b].translation()
+    va, vb = np.asarray(velocities[0], float), np.asarray(velocities[1], float)
+    p = h00 * pa + h01 * pb + g * (h10 * va + h11 * vb)
+    dp_dtau = (d00 * pa + d01 * pb) / g + d10 * va + d11 * vb
+    Rt = R.matrix().T
+    zero = np.zeros((3, 6))
+    dx_di = {i: np.vstack([np.hstack([d, np.zeros((3, 3))]), zero]) for i, d in dR_di.items()}
+    dx_dj = np.vstack([np.hstack([dR_da, np.zeros((3, 3))]), zero])
+    for i, c in ((a, h00), (b, h01)):
+        translation = np.vstack([zero, np.hstack([np.zeros((3, 3)), c * Rt @ poses[i].rotation().matrix()])])
+        if i == j:
+            dx_dj = dx_dj + translation
+        else:
+            dx_di[i] = dx_di.get(i, 0.0) + translation
+    dx_dv = {0: np.vstack([np.zeros((3, 3)), g * h10 * Rt]), 1: np.vstack([np.zeros((3, 3)), g * h11 * Rt])}
+    return gtsam.Pose3(R, p), j, dx_dj, dx_di, np.r_[dR_ds, h * Rt @ dp_dtau], h, dx_dv
+
+
+def interpolate(vartype: VarType, window_t: np.ndarray, states: list, tau: float, velocities: list | None = None,
+                pair: int = 0):
+    """The state at time tau on the curve through `states` at `window_t` (as the factor evaluates it; Pose3
+    states with the world-frame `velocities` (m/s) of states `pair`, `pair` + 1 on the position's Hermite
+    curve between those two)."""
     ops = operations(vartype)
-    y = _curve(ops, Timing(tau, 0.0, np.asarray(window_t, float)), states, tau)[0]
+    timing = Timing(tau, 0.0, np.asarray(window_t, float))
+    if velocities is not None:
+        return _pose_velocity_curve(timing, states, velocities, pair, tau)[0]
+    y = _curve(ops, timing, states, tau)[0]
     if isinstance(ops, _Linear):
         return float(y[0]) if vartype.name == "scalar" else y
     return y
@@ -186,8 +231,10 @@ def _value(ops, y):
 @dataclass
 class Shift:
     """How a factor's measurement-time key is evaluated: the curve through the states `window` (times in
-    `timing`) at tau(delta, rho), delta and rho the variables `offset` and `rate` (None: no clock-rate error).
-    One Shift serves every factor of a sample: the curve of the latest values is kept (`_last`)."""
+    `timing`; Pose3 states: with `velocities`, the keys of the world-frame velocities of the window's states
+    `pair`, `pair` + 1, the pair around the sample at build time) at tau(delta, rho), delta and rho the
+    variables `offset` and `rate` (None: no clock-rate error). One Shift serves every factor of a sample:
+    the curve of the latest values is kept (`_last`)."""
 
     key: int
     vartype: VarType
@@ -195,20 +242,26 @@ class Shift:
     window: tuple[int, ...]
     offset: int
     rate: int | None = None
-    _last: tuple | None = None  # (window states, delta, rho, curve)
+    velocities: tuple[int, int] | None = None
+    pair: int = 0
+    _last: tuple | None = None  # (window states and velocities, delta, rho, curve)
 
     def curve(self, ops, values: gtsam.Values):
-        """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval) at the values' states, delta and rho."""
+        """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval, {i: dx/dv_i}) at the values' states,
+        velocities, delta and rho."""
         read = getattr(values, ops.read)
         states = [read(k) for k in self.window]
+        speeds = [values.atVector(k) for k in self.velocities] if self.velocities else []
         delta = values.atDouble(self.offset)
         rho = 0.0 if self.rate is None else values.atDouble(self.rate)
         last = self._last
         if last is not None and last[1] == delta and last[2] == rho and all(
-                _same(a, b) for a, b in zip(last[0], states)):
+                _same(a, b) for a, b in zip(last[0], states + speeds)):
             return last[3]
-        out = _curve(ops, self.timing, states, self.timing.tau(delta, rho))
-        self._last = (states, delta, rho, out)
+        tau = self.timing.tau(delta, rho)
+        out = (_pose_velocity_curve(self.timing, states, speeds, self.pair, tau) if self.velocities
+               else _curve(ops, self.timing, states, tau))
+        self._last = (states + speeds, delta, rho, out)
         return out
 
 
@@ -247,11 +300,13 @@ def _shifted_error(plan: _Plan, this, values: gtsam.Values, H):
     blocks = [np.zeros((m, d)) for d in plan.key_dims]
     for pos, col in plan.plain:
         blocks[col] += inner_H[pos]
-    for (pos, sh, _), (_, j, da, di, dy_ds, interval) in zip(plan.shifts, curves):
+    for (pos, sh, _), (_, j, da, di, dy_ds, interval, dv) in zip(plan.shifts, curves):
         B = np.asarray(inner_H[pos])
         blocks[plan.column[sh.window[j]]] += B @ da
         for i, d in di.items():
             blocks[plan.column[sh.window[i]]] += B @ d
+        for i, d in dv.items():
+            blocks[plan.column[sh.velocities[i]]] += B @ d
         dtau = (B @ dy_ds).reshape(m, 1) / interval
         blocks[plan.column[sh.offset]] += dtau
         if sh.rate is not None:
@@ -265,13 +320,14 @@ def shifted_factor(inner: gtsam.NonlinearFactor, shifts: list[Shift],
                    vartype_of: Callable[[int], VarType]) -> gtsam.CustomFactor:
     """`inner` (any noise-model factor, its noise model and robust kernel kept) with each shift's key replaced
     by the curve through the shift's window at the sample's time: keys = inner's other keys, then each
-    shift's window states, offset and rate (each key once). `vartype_of(key)`: the type of a variable."""
+    shift's window states, their velocities, offset and rate (each key once). `vartype_of(key)`: the type of a variable."""
     inner_keys = tuple(inner.keys())
     by_key = {sh.key: sh for sh in shifts}
     if set(by_key) - set(inner_keys):
         raise ValueError("a shift names a key the factor does not have")
     keys = list(dict.fromkeys([k for k in inner_keys if k not in by_key]
-                              + [k for sh in shifts for k in (*sh.window, sh.offset, sh.rate) if k is not None]))
+                              + [k for sh in shifts for k in (*sh.window, *(sh.velocities or ()), sh.offset, sh.rate)
+                                 if k is not None]))
     column = {k: i for i, k in enumerate(keys)}
     plan = _Plan(inner, inner_keys,
                  tuple(by_key[k].vartype.dim if k in by_key else vartype_of(k).dim for k in inner_keys),

@@ -26,7 +26,8 @@ import numpy as np
 from ..data.association import Association
 from ..data.stream import Stream
 from ..errors import DataError
-from ..graph.keys import MEASUREMENT
+from ..graph.keys import MEASUREMENT, STATE
+from ..graph.variables import POSE3, VELOCITY3
 from .config import TimeOffset
 from .interpolation import Shift, Timing, interpolate, shifted_factor
 
@@ -134,7 +135,22 @@ class MeasurementStates:
         j = int(np.clip(np.searchsorted(t, tau, side="right") - 1, 0, len(t) - 2))
         window = list(range(max(j - WINDOW_MARGIN, 0), min(j + 2 + WINDOW_MARGIN, len(t))))
         return Shift(m.key, states.family.vartype, Timing(m.stamp, float(t[0]), t[window]),
-                     tuple(ctx.state_keys(m.robot, window)), offset, rate)
+                     tuple(ctx.state_keys(m.robot, window)), offset, rate, self._velocities(m, [j, j + 1]),
+                     j - window[0])
+
+    def _velocities(self, m: MeasurementState, pair: list[int]) -> tuple[int, int] | None:
+        """The keys of the pair's world-frame velocities: Pose3 states of a robot with one per-state
+        velocity3 variable family (imu.preintegrated's) that covers the pair; None otherwise, or with
+        `velocities: false`."""
+        states = self.ctx.states[m.robot]
+        if not m.offset.velocities or states.family.vartype.name != POSE3.name:
+            return None
+        families = [f for f in self.ctx.keys.families()
+                    if f.robot == m.robot and f.kind == STATE and f.vartype.name == VELOCITY3.name]
+        if len(families) != 1:
+            return None
+        keys = tuple(families[0].keys(pair))
+        return keys if all(self.ctx.has_variable(k) for k in keys) else None
 
     def finish(self) -> None:
         """Replace every factor on a measurement-time key by its shifted factor; leave out those whose sample
@@ -171,8 +187,9 @@ class MeasurementStates:
         if sh is None:
             raise KeyError(f"{self.ctx.keys.name_of(key)} lies outside the states")
         rho = 0.0 if sh.rate is None else self.ctx.initial_value(sh.rate)
+        velocities = None if sh.velocities is None else [self.ctx.initial_value(k) for k in sh.velocities]
         return interpolate(sh.vartype, sh.timing.window_t, [self.ctx.initial_value(k) for k in sh.window],
-                           sh.timing.tau(self.ctx.initial_value(sh.offset), rho))
+                           sh.timing.tau(self.ctx.initial_value(sh.offset), rho), velocities, sh.pair)
 
     # --- after solving -----------------------------------------------------------------------
     def beyond_windows(self, values: gtsam.Values) -> list[str]:

@@ -11,7 +11,7 @@ import pytest
 from fusionkit.cli.main import main
 from fusionkit.config.loader import load_config
 from fusionkit.graph.noise import gaussian
-from fusionkit.graph.variables import POINT3, POSE2, POSE3, ROT3, SCALAR, vector_type
+from fusionkit.graph.variables import POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, vector_type
 from fusionkit.pipeline import estimate
 from fusionkit.testing.contract import FactorExample, check_factor_example
 from fusionkit.time_offset.guess import correlate, motion_signal
@@ -56,6 +56,52 @@ def test_shifted_factor_jacobians_match_central_differences_for_every_pair_and_w
             for rho in (None, 0.01):
                 factor, values = shifted_prior(vt, window_t, stamp, 0.05, rho, rng)
                 check_factor_example(FactorExample(factor, values, 0.01), f"{vt.name} {window_t} {stamp}", rng=rng)
+
+
+def shifted_prior_with_velocities(window_t, stamp, delta, pair, rng):
+    """shifted_prior for Pose3 states with the world-frame velocities (keys 20, 21) of states pair, pair + 1."""
+    states = [random_value(POSE3, rng) for _ in window_t]
+    velocities = [rng.normal(size=3) for _ in range(2)]
+    timing = Timing(stamp, 0.0, np.asarray(window_t, float))
+    at = interpolate(POSE3, timing.window_t, states, timing.tau(delta), velocities, pair)
+    values = gtsam.Values()
+    for i, x in enumerate(states):
+        values.insert(i, x)
+    values.insert(20, velocities[0])
+    values.insert(21, velocities[1])
+    values.insert(10, delta)
+    types = {**{i: POSE3 for i in range(len(states))}, 20: VELOCITY3, 21: VELOCITY3, 10: SCALAR}
+    shift = Shift(99, POSE3, timing, tuple(range(len(states))), 10, None, (20, 21), pair)
+    return shifted_factor(POSE3.prior(99, at, gaussian([0.1] * 6)), [shift], types.__getitem__), values
+
+
+def test_shifted_factor_with_state_velocities_has_jacobians_matching_central_differences():
+    """Every pair the sample may fall in, with the velocities of the same or of another pair (the offset
+    moved the sample out of its build-time pair)."""
+    rng = np.random.default_rng(13)
+    for window_t in ([0.0, 0.1, 0.25, 0.3], [0.0, 0.1], [0.0, 0.1, 0.25]):
+        for stamp in (0.02, 0.12, 0.21):
+            for pair in range(len(window_t) - 1):
+                factor, values = shifted_prior_with_velocities(window_t, stamp, 0.05, pair, rng)
+                assert len(factor.keys()) == len(window_t) + 3  # states, two velocities, offset
+                check_factor_example(FactorExample(factor, values, 0.01), f"velocities {window_t} {stamp} {pair}",
+                                     rng=rng)
+
+
+def test_with_state_velocities_a_constant_acceleration_path_is_interpolated_exactly():
+    """p(t) = p0 + v0 t + a t^2 / 2 is cubic: the Hermite curve through positions and true velocities
+    reproduces it to rounding, where the finite-difference tangents of the plain curve miss by O(h^2 a)."""
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    p0, v0, a = np.array([1.0, -2.0, 0.5]), np.array([0.3, 1.0, -0.2]), np.array([4.0, -3.0, 9.0])
+    rot = [gtsam.Rot3.Expmap(np.array([0.1, 0.2, 0.3]) * ti) for ti in t]
+    states = [gtsam.Pose3(r, p0 + v0 * ti + 0.5 * a * ti ** 2) for r, ti in zip(rot, t)]
+    velocities = [v0 + a * ti for ti in t]
+    tau = 0.137
+    truth = p0 + v0 * tau + 0.5 * a * tau ** 2
+    with_v = interpolate(POSE3, t, states, tau, velocities[1:3], pair=1).translation()
+    without = interpolate(POSE3, t, states, tau).translation()
+    assert np.abs(with_v - truth).max() < 1e-12
+    assert np.abs(without - truth).max() > 1e-5
 
 
 def test_shifted_native_range_factor_keeps_its_other_variables_and_noise():
@@ -246,6 +292,12 @@ def write_bad(workspace, edit) -> str:
      ["factors[0].time_offset", "pose.relative does not pair its samples with states by stamp"]),
     (lambda c: c["factors"][1]["time_offset"].update(robot="q"),
      ["factors[1].time_offset.robot", "unknown robot 'q'"]),
+    (lambda c: (c["robots"]["r"]["states"].update(type="pose2"), c["factors"][1]["time_offset"].update(velocities=True)),
+     ["factors[1].time_offset.velocities", "only pose3 states"]),
+    (lambda c: c.setdefault("initializers", []).append(
+        {"type": "time.offset_guess", "robot": "r", "parameter": "clock", "stream": "mocap", "reference": "odom",
+         "signal": "turn_rate", "columns": ["x"]}),
+     ["initializers[1].columns", "turn_rate signal uses the pose columns"]),
 ])
 def test_misconfigured_time_offset_is_one_located_line(workspace, capsys, edit, needles):
     path = write_bad(workspace, edit)
