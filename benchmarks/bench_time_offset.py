@@ -9,7 +9,9 @@ levels -- a self-consistency check -- and, for the offset's sigma, misstated by 
   the offset on the dense stream instead (full): one state per 4 Hz frame cannot follow the swing, so
   states at 40 Hz with the offset on the 40 Hz encoders; its bias;
   UWB with a 50 ms ranging lag: position error with and without the offset, constant biases and the
-  simulator's drifting ones.
+  simulator's drifting ones;
+  IMU against motion capture lagging 20 ms (uwb.drone): the guess's and the graph's errors, z-scores over 20
+  seeds (quick: 4), the states' IMU velocities used in the interpolation or not, and the mocap noise misstated.
 Cost: linearizing a shifted factor (the state at the sample's time on the curve through four states)
 against the plain native factor it wraps (cable range factor), per factor, in this process; the
 calibration's solve with and without the offset.
@@ -26,7 +28,7 @@ from fusionkit.graph.noise import gaussian
 from fusionkit.graph.variables import POINT3, POSE3, SCALAR
 from fusionkit.time_offset.interpolation import Shift, Timing, shifted_factor
 
-from research.time_offset_experiments import LAG, UWB, UWB_LAG, cable_case, uwb_case
+from research.time_offset_experiments import DRONE_LAG, LAG, UWB, UWB_LAG, cable_case, drone_case, uwb_case
 from _timing import median_time, ratio, run_parts, table, us
 
 SELF_CONSISTENCY = "self-consistency (estimator noise = generator noise)"
@@ -103,6 +105,25 @@ def uwb(seeds, duration: float) -> tuple[str, dict]:
     return text, raw
 
 
+def drone(seeds, noises: dict[str, float]) -> tuple[str, dict]:
+    rows, raw = [], {}
+    for label, noise in noises.items():
+        for velocities in (True, False):
+            runs = [drone_case(seed, velocities, noise) for seed in seeds]
+            z = np.array([r["z"] for r in runs])
+            name = f"{label}, {'with' if velocities else 'without'} IMU velocities"
+            raw[name] = {"runs": runs, "mean_z": float(z.mean()), "std_z": float(z.std(ddof=1))}
+            rows.append([name, len(runs), f"{np.max(np.abs([r['guess_error_s'] for r in runs])) * 1e3:.2f}",
+                         f"{np.sqrt(np.mean([r['error_s'] ** 2 for r in runs])) * 1e3:.3f}",
+                         f"{np.mean([r['sigma_s'] for r in runs]) * 1e3:.3f}", f"{z.mean():+.2f}",
+                         f"{z.std(ddof=1):.2f}", " / ".join(f"{np.mean(np.abs(z) <= n) * 100:.0f}" for n in (1, 2, 3)),
+                         f"{np.mean([r['solve_s'] for r in runs]):.2f}"])
+    text = table(["estimator", "seeds", "worst guess error (ms)", "rms error (ms)", "mean sigma (ms)", "mean z",
+                  "std z", "|z| <= 1/2/3 (%)", "solve s"], rows,
+                 f"IMU (states, 10 Hz) against motion capture (50 Hz) lagging {DRONE_LAG * 1e3:.0f} ms, uwb.drone 30 s")
+    return text, raw
+
+
 def _range_graphs(samples: int, per_sample: int, rng) -> tuple:
     """`samples` x `per_sample` cable range factors (a 4-cable robot: 4 per sample), plain on a state and
     shifted onto the curve through 4 states; and two sets of values whose offsets differ (alternating between
@@ -153,11 +174,14 @@ def run(quick: bool) -> dict:
     if quick:
         return run_parts({"cable": lambda: cable(range(2)),
                           "z_scores": lambda: z_scores(range(8), {SELF_CONSISTENCY: {}}),
-                          "uwb": lambda: uwb(range(1), 30.0), "cost": cost})
+                          "uwb": lambda: uwb(range(1), 30.0), "drone": lambda: drone(range(4), {SELF_CONSISTENCY: 1.0}),
+                          "cost": cost})
     noises = {SELF_CONSISTENCY: {}, "encoder sigma x0.5": {"encoder": 0.5}, "encoder sigma x2": {"encoder": 2.0},
               "mocap sigma x0.5": {"mocap": 0.5}, "mocap sigma x2": {"mocap": 2.0}}
     return run_parts({"cable": lambda: cable(range(5)), "z_scores": lambda: z_scores(range(20), noises),
                       "dense_side": lambda: dense_side(range(10)), "uwb": lambda: uwb(range(3), UWB["duration"]),
+                      "drone": lambda: drone(range(20), {SELF_CONSISTENCY: 1.0, "mocap sigma x2": 2.0,
+                                                         "mocap sigma x0.5": 0.5}),
                       "cost": cost})
 
 

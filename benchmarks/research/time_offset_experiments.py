@@ -16,6 +16,11 @@ offset (encoder, tension and tracking noise, interpolation between encoder sampl
 
 UWB (`uwb.sim`, 60 s at 10 Hz, 4 anchors, drifting biases): ranges lagging by 50 ms; the position error
 against the truth with the offset estimated (`uwb_time_offset`) and without.
+
+IMU against motion capture (`uwb.drone`, 30 s): states at the 10 Hz ranging epochs on the IMU's clock
+(200 Hz, preintegrated between them), motion capture at 50 Hz lagging by 20 ms, its offset first guessed
+from its turn rate against the gyro's, then estimated with the states' IMU velocities in the interpolation
+or without them (Catmull-Rom tangents from the neighbouring poses).
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ ENCODER_SIGMA, TENSION_SIGMA = 0.001, 0.1
 MOTION_SIGMA = {"rotation": 1.0, "translation": 1.0}
 UWB_LAG = 0.050
 UWB = {"duration": 60.0, "time_offset": {"ranges": -UWB_LAG}}
+DRONE_LAG = 0.020
+DRONE = {"duration": 30.0, "mocap_rate": 50.0, "time_offset": {"mocap": -DRONE_LAG}}
 
 
 def cable_config(config: dict, half: float, offset: bool, noise: dict[str, float] | None = None,
@@ -134,3 +141,21 @@ def uwb_case(seed: int, offset: bool, duration: float = UWB["duration"], params:
         p = result.parameters["a"]["uwb_time_offset"]
         out.update(offset_s=p.values[0], sigma_s=float(p.sigma[0][0]), error_s=p.values[0] + UWB_LAG)
     return out
+
+
+def drone_case(seed: int, velocities: bool, mocap_noise: float = 1.0) -> dict:
+    """The mocap offset's guess, estimate, sigma and z-score (`mocap_noise`: the mocap sigma the estimator
+    is told, times the simulator's); the solve time (s)."""
+    def edit(config):
+        config["output"] = {"plots": False}
+        for f in config["factors"]:
+            if "time_offset" in f:
+                f["time_offset"]["velocities"] = velocities
+                f["sigma"] = {k: v * mocap_noise for k, v in f["sigma"].items()}
+    with simulated_config("uwb.drone", DRONE, seed, edit) as config:
+        result = estimate(config)
+    guess = next(d for label, d in result.problem.diagnostics.items() if "time.offset_guess" in label)
+    p = result.parameters["drone"]["mocap_time_offset"]
+    error, sigma = p.values[0] + DRONE_LAG, float(p.sigma[0][0])
+    return {"guess_error_s": guess["offset_s"] + DRONE_LAG, "error_s": error, "sigma_s": sigma, "z": error / sigma,
+            "solve_s": result.timings["solve_s"]}

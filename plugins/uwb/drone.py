@@ -3,7 +3,9 @@ between the ranging epochs.
 
 The path is a 3-D Lissajous curve in a 10 x 8 m room (1 to 2 m high), the yaw follows the
 horizontal velocity, roll and pitch sway by a few degrees. The IMU (`imu_rate` Hz) measures the
-specific force R^T (a - g) and the body rate (from the attitude on a fine grid) with white noise
+specific force R^T (a - g) and the body rate (from the attitude on a fine grid) over the interval that
+its stamp starts (at the interval's midpoint: fusionkit's preintegration holds each sample until the
+next, and an instantaneous sample would lag that by half an interval) with white noise
 (`accel_density`, `gyro_density`, per sqrt(Hz)) and constant biases (`accel_bias`, `gyro_bias`
 standard deviations). Ranging at `rate` Hz to 6 anchors with a constant bias per anchor
 (N(0, bias_sigma)) and `range_sigma` noise.
@@ -129,13 +131,14 @@ class UwbDroneSimulator(Simulator):
         z = (np.linalg.norm(pos[:, None, :] - anchors[None], axis=2) + bias
              + rng.normal(0.0, p["range_sigma"], (len(t), len(anchors))))
         ti = sample_times(p["duration"], p["imu_rate"])
-        _, acc, Ri = flight(ti)
+        mid = ti + 0.5 / p["imu_rate"]  # the sample stamped t is the motion over [t, t + 1/rate] (its midpoint)
+        _, acc, Ri = flight(mid)
         accel_bias = rng.normal(0.0, p["accel_bias"], 3)
         gyro_bias = rng.normal(0.0, p["gyro_bias"], 3)
         specific = np.einsum("nji,nj->ni", Ri, acc + [0.0, 0.0, GRAVITY])
         root = np.sqrt(p["imu_rate"])  # white noise density -> per-sample sigma
         imu = np.column_stack([specific + accel_bias + rng.normal(0.0, p["accel_density"] * root, specific.shape),
-                               body_rates(ti) + gyro_bias + rng.normal(0.0, p["gyro_density"] * root, (len(ti), 3))])
+                               body_rates(mid) + gyro_bias + rng.normal(0.0, p["gyro_density"] * root, (len(ti), 3))])
         streams = {"ranges": Stream("ranges", t, tuple(f"r{i}" for i in range(len(anchors))), z, "simulated:ranges"),
                    "imu": Stream("imu", ti, ("ax", "ay", "az", "gx", "gy", "gz"), imu, "simulated:imu")}
         if p["mocap_rate"]:
