@@ -168,7 +168,7 @@ class UwbDroneSimulator(Simulator):
 
     def config(self, params: dict) -> dict:
         """UWB ranges with a constant bias per anchor, the IMU between epochs, motion capture if any;
-        multilateration (heading along the travel) and velocities from it; the mocap's time offset (and
+        poses from multilateration (heading along the travel) or from the motion capture, velocities from them; the mocap's time offset (and
         clock rate) estimated, first guessed against the gyro; batch Levenberg-Marquardt."""
         p = {**self.defaults, **params}
         clocks = _clock_parameters(p["time_offset"])
@@ -191,6 +191,7 @@ class UwbDroneSimulator(Simulator):
             sigma = {k: max(v, 1e-4) for k, v in p["mocap_sigma"].items()}
             factors.append({"type": "pose.absolute", "robot": VEHICLE, "stream": "mocap", "sigma": sigma,
                             **clock("mocap")})
+            initializers[0] = {"type": "pose.interpolate", "robot": VEHICLE, "stream": "mocap"}
             if clock("mocap"):
                 initializers.append({"type": "time.offset_guess", "robot": VEHICLE, "parameter": "mocap_time_offset",
                                      "stream": "mocap", "signal": "turn_rate", "reference": "imu",

@@ -51,3 +51,20 @@ def test_mocap_lag_is_guessed_within_5_ms_and_estimated_within_3_sigma_of_1_ms(v
 def test_a_mocap_clock_without_motion_capture_is_refused_at_its_key():
     with pytest.raises(ConfigError, match=r"time_offset\.mocap.*mocap_rate > 0"):
         SIM.resolve({"time_offset": {"mocap": LAG}}, Document({}, None))
+
+
+@pytest.mark.parametrize("solver", [{"type": "isam2", "warmup": 2.0, "relinearize_threshold": 1e-3},
+                                    {"type": "fixed_lag", "lag": 4.0, "warmup": 2.0, "relinearize_threshold": 1e-3}],
+                         ids=["isam2", "fixed_lag"])
+def test_incremental_solvers_estimate_the_mocap_lag_as_batch_does(solver):
+    """8 s; measured (seed 1): batch -20.26 +- 1.92 ms, iSAM2 -20.22 +- 1.91, fixed-lag -20.18 +- 1.66. With the
+    default relinearize_threshold (0.01) neither converges on this IMU graph (see unified_graph.md)."""
+    def run(settings):
+        with simulated_config("uwb.drone", {"duration": 8.0, "mocap_rate": 50.0, "time_offset": {"mocap": LAG}},
+                              seed=1, edit=lambda c: c.update(solver=settings)) as config:
+            est = estimate(config).parameters["drone"]["mocap_time_offset"]
+        return est.values[0], est.sigma[0][0]
+    batch, batch_sigma = run({"type": "batch"})
+    value, sigma = run(solver)
+    assert abs(value - batch) < 0.25 * batch_sigma and abs(value - LAG) < 3 * sigma
+    assert 0.7 * batch_sigma < sigma < 1.1 * batch_sigma
