@@ -16,12 +16,12 @@ from .config.yamlio import load_yaml
 from .data.files import read_csv_stream, read_tum
 from .data.stream import Stream, pose_array_from, pose_array_of, pose_stream
 from .errors import DataError, SolverError
-from .eval.parameters import parameter_errors
+from .eval.parameters import aligned_point_errors, parameter_errors
 from .eval.states import StateSeries, state_errors, state_series
 from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
 from .eval.timebase import check_truth_clock
-from .eval.trajectory import matched_positions, position_consistency, trajectory_errors
+from .eval.trajectory import fit_alignment, matched_positions, position_consistency, trajectory_errors
 from .graph.builder import BuildContext, Problem, state_times
 from .graph.keys import STATE, TIME_VARYING, Family
 from .graph.variables import component_names
@@ -222,7 +222,24 @@ def evaluate(config: RunConfig, trajectories, position_sigma, parameters, truth:
         ev.setdefault("trajectories", {})[robot] = err
     if truth.calibration:
         ev["parameters"] = parameter_errors(parameters, truth.calibration)
+        fixed = [r for r, setup in config.robots.items() if not setup.states]
+        if align != "none" and fixed:
+            alignment = joint_alignment(trajectories, truth, align)
+            if alignment is not None:
+                for robot, entries in aligned_point_errors(parameters, truth.calibration, fixed, alignment).items():
+                    for name, item in entries.items():
+                        ev["parameters"].setdefault(robot, {}).setdefault(name, {}).update(item)
     return ev
+
+
+def joint_alignment(trajectories, truth: Truth, align: str):
+    """One alignment of every robot's matched estimated positions onto the true ones (the world frame is
+    shared), of the kind `align`; None without three matched positions."""
+    pairs = [matched_positions(trajectories[r], ref) for r, ref in truth.trajectories.items() if r in trajectories]
+    est = np.concatenate([m.estimate for m in pairs]) if pairs else np.zeros((0, 3))
+    if len(est) < 3:
+        return None
+    return fit_alignment(est, np.concatenate([m.truth for m in pairs]), align)
 
 
 def residuals_by_entry(problem: Problem, final: gtsam.Values) -> dict[str, dict]:

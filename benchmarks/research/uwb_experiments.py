@@ -18,7 +18,6 @@ from fusionkit.simulate import simulated_config
 from fusionkit_plugins.uwb.factors import lever_arm
 from fusionkit_plugins.uwb.initializers import multilaterate
 from fusionkit_plugins.uwb.labyrinth import read_labyrinth
-from fusionkit_plugins.uwb.survey import rigid_fit
 
 SCENARIO = "uwb.sim"
 MODELS = ("none", "constant", "time_varying")
@@ -163,17 +162,3 @@ def labyrinth(folder: Path) -> dict:
     err = pos[usable] - truth[usable, 1:]
     out["multilateration"] = float(np.sqrt(np.mean(np.sum(err ** 2, axis=1))))
     return out
-
-
-def aligned_anchor_errors(result, robot: str = "a") -> np.ndarray:
-    """Distance (m) of each estimated planar anchor to the true one after the rotation and
-    translation in the plane that best align the robot's estimated positions with its true ones
-    (least squares): anchors placed in the anchor frame compared in the world's. This is what
-    `truth: align: se3` does to a planar trajectory, except that no mirror image is allowed (a
-    3-D alignment can mirror planar data by a half-turn about an in-plane axis)."""
-    truth, est = result.truth.trajectories[robot], result.trajectories[robot]
-    m = nearest(truth.t, est.t, 0.01)
-    frame = rigid_fit(est.pose_array()[m.row, :2], truth.pose_array()[m.state, :2])
-    anchors = np.asarray(result.parameters["anchors"]["anchor"].values, float)
-    true = np.asarray(result.truth.calibration["anchors"]["anchor"]["values"], float)
-    return np.linalg.norm(np.array([frame.transformFrom(a) for a in anchors]) - true, axis=1)

@@ -86,7 +86,7 @@ CONFIG_SCHEMA = {
                 "calibration": {"type": "string"},
                 "states": {"type": "object",
                            "additionalProperties": {"type": "object", "additionalProperties": {"type": "string"}}},
-                "align": {"enum": ["none", "se3", "sim3"], "default": "none"},
+                "align": {"enum": ["none", "se2", "se3", "sim3"], "default": "none"},
             },
             "additionalProperties": False,
         },

@@ -1,4 +1,4 @@
-"""Trajectory error against ground truth with evo: ATE (optionally SE(3)/Sim(3) aligned) and RPE."""
+"""Trajectory error against ground truth with evo: ATE (optionally SE(2)/SE(3)/Sim(3) aligned) and RPE."""
 
 from __future__ import annotations
 
@@ -36,6 +36,36 @@ def matched_positions(estimate: Stream, truth: Stream, sigma: np.ndarray | None 
                             None if sigma is None else sigma[a.row])
 
 
+@dataclass(frozen=True)
+class Alignment:
+    """x_truth = scale R x_estimate + t (world frames; R about z only for se2)."""
+
+    R: np.ndarray
+    t: np.ndarray
+    scale: float = 1.0
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        return self.scale * np.asarray(points, float) @ self.R.T + self.t
+
+    def matrix(self) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3], out[:3, 3] = self.scale * self.R, self.t
+        return out
+
+
+def fit_alignment(estimate: np.ndarray, truth: np.ndarray, kind: str) -> Alignment:
+    """The least-squares alignment (Umeyama) of estimated onto true positions (n, 3): `se2` a rotation about
+    z and a translation in x, y (planar robots: no tilt fitted to noise), `se3`, or `sim3` (with scale)."""
+    from evo.core.geometry import umeyama_alignment
+    if kind == "se2":
+        r, t, _ = umeyama_alignment(estimate[:, :2].T, truth[:, :2].T)
+        R = np.eye(3)
+        R[:2, :2] = r
+        return Alignment(R, np.r_[t, 0.0])
+    r, t, c = umeyama_alignment(estimate.T, truth.T, with_scale=(kind == "sim3"))
+    return Alignment(r, t, float(c))
+
+
 def _evo(stream: Stream):
     from evo.core.trajectory import PoseTrajectory3D
     a = stream.pose_array()
@@ -50,7 +80,9 @@ def trajectory_errors(estimate: Stream, truth: Stream, align: str = "none",
     ref, est = sync.associate_trajectories(_evo(truth), _evo(estimate), max_diff=max_time_diff)
     est = copy.deepcopy(est)
     scale = 1.0
-    if align in ("se3", "sim3"):
+    if align == "se2":
+        est.transform(fit_alignment(est.positions_xyz, ref.positions_xyz, "se2").matrix())
+    elif align in ("se3", "sim3"):
         _, _, scale = est.align(ref, correct_scale=(align == "sim3"))
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))

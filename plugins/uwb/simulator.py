@@ -232,7 +232,7 @@ class UwbSimulator(Simulator):
         config = {"robots": robots, "factors": factors, "initializers": inits,
                   "solver": {"type": "batch", "method": "lm"}}
         if _unsurveyed(p):
-            config["truth"] = {"align": "se3"}  # the anchor frame is not the world's: compare after alignment
+            config["truth"] = {"align": "se2"}  # the anchor frame is not the world's: compare after alignment (planar)
         return config
 
 

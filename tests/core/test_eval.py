@@ -6,7 +6,7 @@ import gtsam
 import numpy as np
 
 from fusionkit.data.stream import pose_array_from, pose_stream
-from fusionkit.eval.trajectory import position_consistency, trajectory_errors
+from fusionkit.eval.trajectory import fit_alignment, position_consistency, trajectory_errors
 
 
 def _circle(n: int = 200):
@@ -35,6 +35,22 @@ def test_sim3_alignment_recovers_a_scale_of_2_5_and_zero_ate():
     out = trajectory_errors(pose_stream("est", t, arr), truth, align="sim3")
     assert out["ate_rmse_m"] < 1e-9
     assert abs(out["alignment_scale"] - 2.5) < 1e-9
+
+
+def test_se2_alignment_undoes_a_planar_motion_and_fits_no_tilt_to_height_noise():
+    """A planar path turned 0.7 rad about z and moved in x, y: SE(2) alignment brings the ATE to 0; with
+    heights that are pure noise (a planar robot's z) it fits a rotation about z only, where SE(3) tilts."""
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 20, 200)
+    xy = np.column_stack([3 * np.cos(0.3 * t), 1.5 * np.sin(0.6 * t)])
+    truth = np.column_stack([xy, rng.normal(0, 0.05, len(t))])
+    c, s_ = np.cos(0.7), np.sin(0.7)
+    moved = np.column_stack([xy @ np.array([[c, s_], [-s_, c]]) + [1.0, -2.0], rng.normal(0, 0.05, len(t))])
+    planar = fit_alignment(moved, truth, "se2")
+    assert np.allclose(planar.apply(moved)[:, :2], xy, atol=1e-9) and planar.R[2, 2] == 1.0
+    assert fit_alignment(moved, truth, "se3").R[2, 2] < 1.0 - 1e-6  # SE(3) fits a tilt to the noise
+    poses = lambda p: pose_stream("p", t, [gtsam.Pose3(gtsam.Rot3(), q) for q in p])  # noqa: E731
+    assert trajectory_errors(poses(moved), poses(np.column_stack([xy, moved[:, 2]])), align="se2")["ate_rmse_m"] < 1e-9
 
 
 def test_rpe_of_one_10_cm_step_is_its_share_of_49_steps():
