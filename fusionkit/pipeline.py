@@ -15,6 +15,7 @@ from .config.loader import RunConfig
 from .config.yamlio import load_yaml
 from .data.files import read_csv_stream, read_tum
 from .data.stream import Stream, pose_array_from, pose_array_of, pose_stream
+from .data.stamp_check import check_repeated_stamps
 from .errors import DataError, SolverError
 from .eval.parameters import aligned_point_errors, parameter_errors
 from .eval.states import StateSeries, state_errors, state_series
@@ -104,6 +105,7 @@ def read_sources(config: RunConfig) -> tuple[dict[str, Stream], Truth]:
     for name, cols in config.stream_columns.items():
         if name not in streams:
             raise DataError(f"sources[{config.stream_source[name]}] did not produce stream {name!r}")
+    check_repeated_stamps(config, streams)
     for robot, file in (config.truth.get("trajectories") or {}).items():
         truth.trajectories[robot] = read_tum(config.resolve(file), f"truth:{robot}")
     if "calibration" in config.truth:

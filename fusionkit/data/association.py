@@ -21,7 +21,9 @@ class Association:
 
 
 def nearest(state_t: np.ndarray, sample_t: np.ndarray, tolerance: float) -> Association:
-    """Pair each state with the closest sample within `tolerance` seconds (at most one each way)."""
+    """Pair each state with the closest sample within `tolerance` seconds: one sample per state, or all the
+    samples stamped like the closest one (a round-robin log's readings of one epoch); a sample pairs with at
+    most one state."""
     idx = np.clip(np.searchsorted(state_t, sample_t), 1, len(state_t) - 1) if len(state_t) > 1 else \
         np.zeros(len(sample_t), dtype=int)
     if len(state_t) > 1:
@@ -32,12 +34,14 @@ def nearest(state_t: np.ndarray, sample_t: np.ndarray, tolerance: float) -> Asso
     ok = dt <= tolerance
     rows = np.flatnonzero(ok)
     states = idx[ok]
-    # keep only the closest sample for each state
+    # keep for each state the closest sample, and the samples that repeat its stamp
     order = np.lexsort((dt[rows], states))
     rows, states = rows[order], states[order]
     first = np.ones(len(states), dtype=bool)
     first[1:] = states[1:] != states[:-1]
-    rows, states = rows[first], states[first]
+    closest = sample_t[rows[first]][np.cumsum(first) - 1]
+    keep = sample_t[rows] == closest
+    rows, states = rows[keep], states[keep]
     return Association(states, rows, int(len(sample_t) - len(rows)))
 
 

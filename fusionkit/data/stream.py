@@ -16,8 +16,8 @@ PLANAR_POSE_COLUMNS = ("x", "y", "theta")
 
 @dataclass
 class Stream:
-    """N samples: times `t` (s, strictly increasing) and `values` (N x len(columns)); not modified
-    once read (its poses are converted once)."""
+    """N samples: times `t` (s, non-decreasing: round-robin logs stamp several readings alike) and `values`
+    (N x len(columns)); not modified once read (its poses are converted once)."""
 
     name: str
     t: np.ndarray
@@ -58,6 +58,11 @@ class Stream:
             self._poses = poses_from_array(self.pose_array())
         return list(self._poses)
 
+    def repeated_stamps(self) -> tuple[int, float]:
+        """(how many samples repeat the previous sample's stamp, the first such stamp in s; nan if none)."""
+        same = np.diff(self.t) == 0
+        return int(same.sum()), float(self.t[1:][same][0]) if same.any() else float("nan")
+
     def subset(self, rows: np.ndarray) -> "Stream":
         return Stream(self.name, self.t[rows], self.columns, self.values[rows], self.origin)
 
@@ -87,7 +92,8 @@ def pose_stream(name: str, t: np.ndarray, poses: list[gtsam.Pose3] | np.ndarray,
 
 def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: int = 1,
                   lines: np.ndarray | None = None) -> None:
-    """Reject NaN/inf and non-increasing timestamps, saying how many rows and the first line.
+    """Reject NaN/inf and timestamps that go back in time, saying how many rows and the first line (equal
+    stamps pass: the components that need strictly increasing ones refuse them, pipeline.check_stamps).
 
     Row i is reported as line `lines[i]` when given (files with comments or blank lines), else
     as `first_line + i`.
@@ -101,9 +107,8 @@ def check_samples(t: np.ndarray, values: np.ndarray, origin: str, first_line: in
         first = line_of(int(np.argmax(bad)))
         raise DataError(f"{origin}:{first}: {int(bad.sum())} row(s) contain NaN or "
                         f"infinite values (first at line {first}); expected finite numbers")
-    back = np.diff(t) <= 0
+    back = np.diff(t) < 0
     if back.any():
         first = line_of(int(np.argmax(back)) + 1)
-        raise DataError(f"{origin}:{first}: {int(back.sum())} row(s) have timestamps that do "
-                        f"not increase (first at line {first}); expected strictly "
-                        "increasing t in seconds")
+        raise DataError(f"{origin}:{first}: {int(back.sum())} row(s) have timestamps that go back "
+                        f"in time (first at line {first}); expected non-decreasing t in seconds")

@@ -95,6 +95,7 @@ def multilaterate(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.n
 
 class Multilateration(Initializer):
     name = "uwb.multilateration"
+    accepts_repeated_stamps = True  # ranges are grouped by time window (round-robin logs stamp several alike)
     summary = ("first poses by per-epoch multilateration to the known anchors, unknown anchors (and their "
                "constant bias) by the closed-form range-origin fit shared with the cable plugins; with no anchor "
                "surveyed, anchors placed from the ranges alone, in the anchor frame")
