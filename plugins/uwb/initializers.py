@@ -1,7 +1,8 @@
 """`uwb.multilateration`: first poses and unknown anchors from the ranges alone.
 
-1. Positions: at each state, the ranges of the surrounding `window` (s; default 0: the state's own
-   epoch; round-robin ranging needs a window spanning one round) to the anchors whose positions are
+1. Positions: at each state, the ranges of the surrounding `window` (s; `auto`, the default: the state's
+   own epoch when epochs reach enough anchors, else the span of one round of round-robin ranging,
+   round_window) to the anchors whose positions are
    known (their current values: the description's nominal ones) give the tag
    position by Gauss-Newton least squares (vectorized over states), minus the lever arm. The
    heading comes from the direction of travel (`heading: travel`, the planar default) or stays
@@ -93,6 +94,27 @@ def multilaterate(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.n
     return x, usable
 
 
+def round_window(t: np.ndarray, anchor: np.ndarray, need: int) -> float:
+    """The window (s) a state needs to see `need` distinct anchors among ranges (t non-decreasing): 0 when
+    the median epoch (stamp) reaches that many; else the median time over which `need` distinct anchors
+    answer in turn (round-robin ranging), plus one step between epochs. 0 when they never do."""
+    stamps, first = np.unique(t, return_index=True)
+    ends = np.append(first[1:], len(t))
+    if np.median([len(set(anchor[a:b].tolist())) for a, b in zip(first, ends)]) >= need:
+        return 0.0
+    spans = []
+    for i in range(0, len(t), max(1, len(t) // 500)):
+        seen, j = set(), i
+        while j < len(t) and len(seen) < need:
+            seen.add(int(anchor[j]))
+            j += 1
+        if len(seen) == need:
+            spans.append(t[j - 1] - t[i])
+    if not spans:
+        return 0.0
+    return float(np.median(spans) + (np.median(np.diff(stamps)) if len(stamps) > 1 else 0.0))
+
+
 class Multilateration(Initializer):
     name = "uwb.multilateration"
     accepts_repeated_stamps = True  # ranges are grouped by time window (round-robin logs stamp several alike)
@@ -107,7 +129,8 @@ class Multilateration(Initializer):
                              "ids": {"type": "array", "items": {"type": "number"}, "minItems": 1},
                              "columns": {"type": "array", "items": NAME, "minItems": 1},
                              "unknown": {"type": "array", "items": {"type": "integer", "minimum": 0}, "default": []},
-                             "window": {"type": "number", "minimum": 0, "default": 0.0},
+                             "window": {"oneOf": [{"type": "number", "minimum": 0}, {"const": "auto"}],
+                                        "default": "auto"},
                              "heading": {"enum": ["travel", "keep"]}},  # default: travel if planar, else keep
               "required": ["robot", "anchors", "stream"], "additionalProperties": False}
 
@@ -140,7 +163,7 @@ class Multilateration(Initializer):
         ranges = _Ranges(np.array([stream.t[r] for r, _, _ in rows]), np.array([i for _, i, _ in rows], int),
                          np.array([v for _, _, v in rows]))
         if len(unknown) == n:
-            self._self_survey(ctx, spec, keys, ranges)
+            self._self_survey(ctx, spec, keys, ranges, self._window(ctx, spec, ranges, n))
             return
         known = ~np.isin(ranges.anchor, unknown)
         self._place(ctx, spec, anchors, ranges.subset(known), planar_anchors)
@@ -159,7 +182,9 @@ class Multilateration(Initializer):
         planar = states.family.vartype is POSE2
         b = lever_arm(ctx.robot(robot), spec.get("tag"))
         height = float(b[2]) if (planar and not planar_anchors) else None
-        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, spec["window"], height)
+        need = (anchors.shape[1] if height is None else 2) + 1
+        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors,
+                                    self._window(ctx, spec, ranges, need), height)
         if not usable.any():
             raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "
                              "`window` or give more anchors known positions")
@@ -179,7 +204,21 @@ class Multilateration(Initializer):
             raise spec.error("unknown", f"anchor {i}: {exc}") from None
         return a, c, rms, int(m.sum())
 
-    def _self_survey(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges") -> None:
+    @staticmethod
+    def _window(ctx, spec: Spec, ranges: "_Ranges", need: int) -> float:
+        """The entry's `window` (s); `auto`: round_window, with a note when it is not the state's own epoch."""
+        if spec["window"] != "auto":
+            return float(spec["window"])
+        window = round_window(ranges.t, ranges.anchor, need)
+        if window > 0:
+            note = (f"{spec.label}: an epoch of stream {spec['stream']!r} reaches fewer than {need} anchors "
+                    f"(round-robin ranging): each state is placed from the ranges within +-{window / 2:.3f} s "
+                    "(window: auto)")
+            if note not in ctx.notes:
+                ctx.notes.append(note)
+        return window
+
+    def _self_survey(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges", window: float) -> None:
         """No anchor known (planar): place the anchors from the ranges, keep the placement or its
         mirror image (whichever the robot's factors fit better once solved; when they do not tell,
         anchor 2 on the +y side), then fix the frame: gauge priors, or the description's priors."""
@@ -187,7 +226,7 @@ class Multilateration(Initializer):
         described = ctx.robot(spec["anchors"]).parameters[param]
         states = ctx.state_set(robot, spec)
         ranges = ranges.subset(line_of_sight(ranges.t, ranges.anchor, ranges.z))
-        table = range_matrix(states.t, ranges.t, ranges.anchor, ranges.z, len(keys), spec["window"])
+        table = range_matrix(states.t, ranges.t, ranges.anchor, ranges.z, len(keys), window)
         try:
             placed, _ = place_anchors(table[~np.isnan(table).any(axis=1)], 2)
         except ValueError as exc:

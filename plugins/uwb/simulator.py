@@ -12,6 +12,9 @@ others are known to 1 mm and fix the frame. With every anchor listed (a site nob
 description has no anchor sigma, the estimate is in the anchor frame (anchor 0 at the origin, anchor
 1 on +x: the room below is drawn in it) and the config evaluates after alignment (`align: se3`).
 
+`round_robin: true`: one anchor answers per epoch, in turn (the other columns hold 0: no range), as
+tags that range to one anchor at a time do (`uwb.multilateration`'s automatic window then spans a round).
+
 `time_offset: {ranges: s}`: the range sample stamped t measures the tag at t + offset on the wheels' (and the
 states') clock (fusionkit's sign convention, docs/models/unified_graph.md#time-offsets: ranging that lags by
 50 ms is `ranges: -0.05`); the config then estimates each robot's `uwb_time_offset`. A drifting ranging clock:
@@ -82,13 +85,14 @@ class UwbSimulator(Simulator):
                                                  "items": {"type": "integer", "minimum": 0, "maximum": len(ROOM) - 1}},
                              "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
                              "bias_model": {"enum": ["none", "constant", "time_varying"]},
+                             "round_robin": {"type": "boolean"},
                              "time_offset": {"type": "object", "properties": {"ranges": CLOCK_SCHEMA},
                                              "additionalProperties": False}},
               "additionalProperties": False}
     defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
                 "bias_drift": 0.03, "outlier_fraction": 0.0, "burst_s": 1.0, "wheel_sigma": 0.02,
                 "unknown_anchors": [], "anchor_error": 1.0, "scale_error": 0.0, "bias_model": "time_varying",
-                "time_offset": {}}
+                "round_robin": False, "time_offset": {}}
 
     def _params(self, params: dict) -> dict:
         return {**self.defaults, **params}
@@ -130,6 +134,8 @@ class UwbSimulator(Simulator):
             burst = max(1, int(round(p["burst_s"] * p["rate"])))
             z = ((1 + p["scale_error"]) * true_range + bias + rng.normal(0.0, p["range_sigma"], true_range.shape)
                  + nlos_errors(true_range.shape, p["outlier_fraction"], burst, rng))
+            if p["round_robin"]:  # one anchor per epoch, in turn; the others' columns hold 0: no range
+                z[np.arange(len(t))[:, None] % n != np.arange(n)[None]] = 0.0
             vr, vl = wheel_speeds(t, pos, heading, WHEEL_DISTANCE)
             vr, vl = vr + rng.normal(0.0, p["wheel_sigma"], len(t)), vl + rng.normal(0.0, p["wheel_sigma"], len(t))
             cols = tuple(f"r{i}" for i in range(n))
