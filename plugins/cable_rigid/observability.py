@@ -71,6 +71,7 @@ from .model import cable_robot
 AXES = ("x", "y", "z")
 ADVICE = {"x": "x", "y": "y", "z": "z (up/down)"}
 K_NOISE = 3.0  # a direction is excited when its rms amplitude exceeds K_NOISE encoder sigmas
+MISMATCH = 2.0  # a fit rms above MISMATCH encoder sigmas: the model misses something, judge at that level
 AXIS_COS = np.cos(np.radians(20.0))  # a direction within 20 deg of an axis is named by the axis
 
 
@@ -89,6 +90,8 @@ class LiftedSystem:
     z_mean: float
     shift: np.ndarray      # unknown scale: mean rotated attachment R b added back to the pulley
     unknown_scale: bool
+    z: np.ndarray          # (N,) the encoder readings
+    alpha: np.ndarray      # (N,) 1 - T/EA (ones: rigid)
 
 
 def lifted_system(t: np.ndarray, z: np.ndarray, attachment: np.ndarray | None = None,
@@ -128,7 +131,7 @@ def lifted_system(t: np.ndarray, z: np.ndarray, attachment: np.ndarray | None = 
         scales.append([1.0])
     rhs = zc ** 2 - (0 if unknown_scale else a2 * np.sum(qc ** 2, axis=1))
     return LiftedSystem(np.column_stack(cols), rhs, tuple(names), interest, np.concatenate(scales), L,
-                        q, q_mean, z_mean, shift, unknown_scale)
+                        q, q_mean, z_mean, shift, unknown_scale, z, np.sqrt(a2))
 
 
 def solve_lifted(sys: LiftedSystem) -> dict:
@@ -141,12 +144,41 @@ def solve_lifted(sys: LiftedSystem) -> dict:
     return {"pulley": theta[:3] / s + s * sys.q_mean + sys.shift, "offset": l0, "scale": s}
 
 
+def fit_rms(sys: LiftedSystem, iterations: int = 10) -> float:
+    """Rms (m) of the length residuals alpha |q - a| + l0 - z at the least-squares pulley and offset (the
+    lifted solution refined by Gauss-Newton on the lengths themselves); nan with an unknown scale."""
+    if sys.unknown_scale:
+        return float("nan")
+    first = solve_lifted(sys)
+    a, l0 = np.asarray(first["pulley"], float), first["offset"]
+    for _ in range(iterations):
+        d = sys.q - a
+        dist = np.linalg.norm(d, axis=1)
+        e = sys.alpha * dist + l0 - sys.z
+        J = np.column_stack([-(sys.alpha / np.maximum(dist, 1e-9))[:, None] * d, np.ones(len(e))])
+        step = np.linalg.lstsq(J, -e, rcond=None)[0]
+        a, l0 = a + step[:3], l0 + step[3]
+    e = sys.alpha * np.linalg.norm(sys.q - a, axis=1) + l0 - sys.z
+    return float(np.sqrt(np.mean(e ** 2)))
+
+
 def _rank(s: np.ndarray, tol: float) -> int:
     return int(np.sum(s > tol))
 
 
 def analyze(sys: LiftedSystem, sigma: float, k: float = K_NOISE) -> dict:
-    """Rank, condition, weak directions of one cable's system (sigma: encoder noise, m)."""
+    """Rank, condition, weak directions of one cable's system (sigma: encoder noise, m). When the motion
+    determines the pulley and offset at that noise but the lengths fit it far worse (rms above MISMATCH
+    sigmas: sag, swing, a pulley radius or a time offset the model lacks), it is judged again against that
+    residual level (`judged_at_m`)."""
+    r = _analyze(sys, sigma, k)
+    residual = fit_rms(sys) if r["observable"] else float("nan")
+    if residual > MISMATCH * sigma:  # (nan compares False)
+        r = _analyze(sys, residual, k)
+    return {**r, "fit_rms_m": residual, "judged_at_m": residual if residual > MISMATCH * sigma else sigma}
+
+
+def _analyze(sys: LiftedSystem, sigma: float, k: float) -> dict:
     n, N = sys.A.shape[1], sys.A.shape[0]
     As = sys.A * sys.col_scale / np.sqrt(max(N, 1))
     _, s, Vt = np.linalg.svd(As, full_matrices=True)
@@ -207,6 +239,10 @@ def _join(words: list[str]) -> str:
 
 def verdict(cable: int, r: dict) -> str:
     head = f"cable {cable}: "
+    if r.get("fit_rms_m", 0.0) == r.get("judged_at_m", -1.0):
+        head += (f"the lengths fit this motion to {r['fit_rms_m'] * 1e3:.1f} mm rms, more than {MISMATCH:g} encoder "
+                 "sigmas: the model misses something (sagging cables, a swinging end-effector, pulley radius, a "
+                 "time offset); judged at that level, ")
     counts = f"rank {r['rank']}/{r['unknowns']}, condition {_sci(r['condition'])}"
     if r["observable"]:
         return head + f"observable ({counts})" + ("" if r["rank"] == r["unknowns"] else
@@ -265,6 +301,7 @@ def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
                        "condition": r["condition"], "extent_m": [float(e) for e in r["extent_m"]],
                        "weakest_direction": [float(c) for c in r["weakest_direction"]],
                        "excitation_m": r["excitation_m"], "observable": r["observable"],
+                       "fit_rms_m": None if np.isnan(r["fit_rms_m"]) else r["fit_rms_m"],
                        "unknown_names": list(r["unknown_names"])})
         lines.append(verdict(int(i), r))
     report = {"cables": cables, "verdict": lines}

@@ -136,6 +136,26 @@ def test_small_motion_cannot_separate_offset_from_distance(rng):
     assert "too small to tell the offset from the distance to the pulley" in verdict(0, r)
 
 
+def test_lengths_that_fit_far_worse_than_the_encoder_noise_are_judged_at_their_residual_level(rng):
+    """The real-robot case: every cable "observable" at the encoder's 1 mm while the model missed by more.
+    Lengths 8 mm off the rigid model (a swinging, sagging robot would do it): the fit's rms is reported,
+    and a motion that excites the weakest direction by about 5 mm -- enough for 1 mm, not for 8 -- is no
+    longer called observable; a large motion (0.8 m) still is, with the warning."""
+    t, R = trajectory(rng, 300, [0.3, 0.3, 0.3])
+    clean = analyze(lifted_system(t, lengths(t, R, 0) + rng.normal(0, SIGMA, 300), R @ ATTACH[0]), SIGMA)
+    assert clean["observable"] and clean["fit_rms_m"] < 1.2 * SIGMA and clean["judged_at_m"] == SIGMA
+    assert 3 * SIGMA < clean["excitation_m"] < 3 * 0.008  # measured 5.4 mm
+    z = lengths(t, R, 0) + rng.normal(0, 0.008, 300)
+    r = analyze(lifted_system(t, z, R @ ATTACH[0]), SIGMA)
+    assert not r["observable"] and 0.007 < r["fit_rms_m"] < 0.009 and r["judged_at_m"] == r["fit_rms_m"]
+    text = verdict(0, r)
+    assert text.startswith(f"cable 0: the lengths fit this motion to {r['fit_rms_m'] * 1e3:.1f} mm rms, more than 2 "
+                           "encoder sigmas: the model misses something") and "NOT observable" in text
+    t, R = trajectory(rng, 300, [0.8, 0.8, 0.8])
+    big = analyze(lifted_system(t, lengths(t, R, 0) + rng.normal(0, 0.008, 300), R @ ATTACH[0]), SIGMA)
+    assert big["observable"] and "the model misses something" in verdict(0, big)
+
+
 # --- the diagnostic in a run -----------------------------------------------------------------
 CDPR = {"name": "cdpr_test", "summary": "4-cable test robot", "model": "cdpr", "frames": ["base", "end_effector"],
         "sensors": {"encoders": {"type": "cable_length_encoders", "frame": "base"}},
