@@ -2,6 +2,8 @@
 
 `odometry.diff_drive`: the wheel speeds of a differential-drive robot (SE(2) states), each held
 until the next sample, integrated into one native BetweenFactorPose2 per state interval.
+`odometry.increments`: dead reckoning logged as increments (distance, heading change per sample), composed
+between states as arcs; with a heading-rate bias parameter (a gyro's) the factor estimates it.
 `motion.constant_velocity`: a constant-velocity prior: the body-frame twist of consecutive
 intervals agrees (SE(2) or SE(3) states).
 """
@@ -65,6 +67,94 @@ class DiffDriveOdometry(FactorType):
         return FactorExample(gtsam.BetweenFactorPose2(0, 1, delta, gaussian([0.01, 0.01, 0.02])), values)
 
 
+def increment_segments(t: np.ndarray, distance: np.ndarray, turn: np.ndarray, t0: float, t1: float):
+    """(d, theta, dt) of the pieces of [t0, t1] between the stream's stamps: row i is the motion over
+    (t_{i-1}, t_i] (the first row's is not used), spread evenly over that span, so a row that straddles a
+    state time is split in proportion."""
+    D = np.concatenate([[0.0], np.cumsum(distance[1:])])
+    T = np.concatenate([[0.0], np.cumsum(turn[1:])])
+    cuts = np.concatenate([[t0], t[(t > t0) & (t < t1)], [t1]])
+    return np.diff(np.interp(cuts, t, D)), np.diff(np.interp(cuts, t, T)), np.diff(cuts)
+
+
+def composed_arcs(d: np.ndarray, theta: np.ndarray, bias: float, dt: np.ndarray) -> tuple[gtsam.Pose2, np.ndarray]:
+    """Delta = Exp(d_1, 0, theta_1 - b dt_1) ... Exp(d_m, 0, theta_m - b dt_m) and dDelta/db in Delta's right
+    tangent: sum_j Ad(R_j^-1) J_r(xi_j) (0, 0, -dt_j), R_j the arcs after j."""
+    arcs = [np.array([dj, 0.0, tj - bias * hj]) for dj, tj, hj in zip(d, theta, dt)]
+    delta, g = gtsam.Pose2(), np.zeros(3)
+    for xi, h in zip(reversed(arcs), reversed(dt)):  # from the last arc back: `delta` is R_j before arc j joins
+        g = g + delta.inverse().AdjointMap() @ gtsam.Pose2.ExpmapDerivative(xi) @ np.array([0.0, 0.0, -h])
+        delta = gtsam.Pose2.Expmap(xi).compose(delta)
+    return delta, g
+
+
+def _increments_error(d: np.ndarray, theta: np.ndarray, dt: np.ndarray, this, values: gtsam.Values, H):
+    """e = Log(Delta(b)^-1 X_a^-1 X_b) (BetweenFactorPose2's error with the measurement built at the bias b)."""
+    a, b, bias = this.keys()
+    delta, g = composed_arcs(d, theta, values.atDouble(bias), dt)
+    Ha, Hb = np.zeros((3, 3), order="F"), np.zeros((3, 3), order="F")
+    relative = values.atPose2(a).between(values.atPose2(b), Ha, Hb)
+    mismatch = delta.between(relative)
+    e = gtsam.Pose2.Logmap(mismatch)
+    if H is not None:
+        L = gtsam.Pose2.LogmapDerivative(e)
+        H[0], H[1] = L @ Ha, L @ Hb
+        H[2] = (-L @ mismatch.inverse().AdjointMap() @ g).reshape(3, 1)
+    return e
+
+
+class IncrementOdometry(FactorType):
+    name = "odometry.increments"
+    summary = ("dead reckoning logged as increments (distance, heading change per sample) composed as arcs "
+               "between consecutive states; optionally a heading-rate bias parameter (rad/s)")
+    robot_fields = ("robot",)
+    stream_fields = ("stream",)
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "distance": {**NAME, "default": "distance"},
+                             "turn": {**NAME, "default": "turn"}, "bias": NAME, "sigma": POSE_SIGMA_SCHEMA},
+              "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot", "pose2")
+        scope.require_columns(spec, "stream", (spec["distance"], spec["turn"]))
+        if "bias" in spec.data:
+            scope.require_parameter(spec, "robot", "bias", "scalar")
+
+    def build(self, ctx, spec: Spec) -> None:
+        """Row i: the distance (m) travelled and the heading change (rad) over (t_{i-1}, t_i]; with `bias`
+        (rad/s), the true heading change is the logged one minus bias * dt. sigma (per sqrt(s): m and rad)
+        grows with the square root of the state interval, as odometry.diff_drive's."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        stream = ctx.stream(spec["stream"])
+        distance, turn = stream.column(spec["distance"]), stream.column(spec["turn"])
+        sig = pose_sigmas(spec["sigma"], planar=True)
+        for k in range(1, len(states)):
+            t0, t1 = float(states.t[k - 1]), float(states.t[k])
+            d, theta, dt = increment_segments(stream.t, distance, turn, t0, t1)
+            noise = ctx.noise(sig * np.sqrt(max(t1 - t0, 1e-9)), spec)
+            keys = [ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k)]
+            if "bias" in spec.data:
+                factor = gtsam.CustomFactor(noise, keys + [ctx.parameter(robot, spec["bias"], None, k - 1)],
+                                            partial(_increments_error, d, theta, dt))
+            else:
+                factor = gtsam.BetweenFactorPose2(*keys, composed_arcs(d, theta, 0.0, dt)[0], noise)
+            ctx.add(factor, spec, t1)
+
+    @classmethod
+    def example(cls, rng):
+        """Ten logged increments with a heading-rate bias, the end pose composed exactly."""
+        d, theta, dt = rng.uniform(0.0, 0.1, 10), rng.normal(0, 0.05, 10), np.full(10, 0.05)
+        bias = float(rng.normal(0, 0.01))
+        a = gtsam.Pose2(*rng.normal(size=3))
+        values = gtsam.Values()
+        values.insert(0, a)
+        values.insert(1, a.compose(composed_arcs(d, theta, bias, dt)[0]))
+        values.insert(2, bias)
+        factor = gtsam.CustomFactor(gaussian([0.01, 0.01, 0.02]), [0, 1, 2], partial(_increments_error, d, theta, dt))
+        return FactorExample(factor, values)
+
+
 def _constant_velocity_error(dt1: float, dt2: float, planar: bool, this, v: gtsam.Values, H):
     k = this.keys()
     cls = gtsam.Pose2 if planar else gtsam.Pose3
@@ -123,4 +213,4 @@ class ConstantVelocity(FactorType):
         return FactorExample(factor, values)
 
 
-FACTOR_TYPES = [DiffDriveOdometry, ConstantVelocity]
+FACTOR_TYPES = [DiffDriveOdometry, IncrementOdometry, ConstantVelocity]
