@@ -6,10 +6,14 @@ Model keys of the description (besides frames, sensors, parameters):
     cables:
       attachments: [[x, y, z], ...]   # b_i: attachment points in the end-effector frame (m)
       stiffness_EA: 2.0e4             # axial stiffness E*A (N); absent: rigid cables
-      weight_per_length: 0.10         # cable weight per metre g_c (N/m); absent: massless
+      weight_per_length: 0.10         # cable weight per metre g_c (N/m); or mass_per_length (kg/m); absent: massless
     end_effector:
-      mass: 2.5                       # kg
+      mass: 2.5                       # kg; or weight (N)
       com: [0, 0, -0.05]              # centre of mass in the end-effector frame (m)
+    gravity: 9.81                     # m/s^2 (default), converts a mass to a weight and back
+
+Masses and weights are both published; whichever the description gives is stored as `mass` (kg) and
+`weight_per_length` (N/m) once the description is checked, converted with its `gravity`.
 
 Calibration parameters it requires: `pulley` (point3, one per cable: a_i, the point where cable
 i leaves its pulley, base frame) and `offset` (scalar, one per cable: l0_i, encoder reading minus
@@ -48,6 +52,22 @@ def cable_robot(desc: RobotDescription) -> CableRobot:
                       cables.get("weight_per_length"), ee.get("mass"), np.asarray(ee.get("com", [0, 0, 0]), float))
 
 
+GRAVITY = 9.81  # m/s^2, unless the description gives `gravity`
+
+
+def store_as_mass_and_weight(desc: RobotDescription) -> None:
+    """end_effector.weight (N) becomes mass (kg), cables.mass_per_length (kg/m) becomes weight_per_length
+    (N/m), with the description's gravity; ConfigError at the key when both forms are given."""
+    g = float(desc.extra.get("gravity", GRAVITY))
+    for path, given, stored, to_stored in (("end_effector", "weight", "mass", 1.0 / g),
+                                          ("cables", "mass_per_length", "weight_per_length", g)):
+        group = desc.extra.get(path, {})
+        if given in group and stored in group:
+            raise desc.error((path, given), f"give {path}.{stored} or {path}.{given}, not both")
+        if given in group:
+            group[stored] = float(group.pop(given)) * to_stored
+
+
 class CdprModel(RobotModel):
     name = "cdpr"
     summary = "cable-driven parallel robot: pulleys a_i, attachments b_i, encoder offsets l0_i, EA, mass"
@@ -56,16 +76,21 @@ class CdprModel(RobotModel):
                   "cables": {"type": "object",
                              "properties": {"attachments": {"type": "array", "items": VEC3, "minItems": 1},
                                             "stiffness_EA": {"type": "number", "exclusiveMinimum": 0},
-                                            "weight_per_length": {"type": "number", "exclusiveMinimum": 0}},
+                                            "weight_per_length": {"type": "number", "exclusiveMinimum": 0},
+                                            "mass_per_length": {"type": "number", "exclusiveMinimum": 0}},
                              "required": ["attachments"], "additionalProperties": False},
                   "end_effector": {"type": "object",
                                    "properties": {"mass": {"type": "number", "exclusiveMinimum": 0},
+                                                  "weight": {"type": "number", "exclusiveMinimum": 0},
                                                   "com": VEC3},
-                                   "additionalProperties": False}},
+                                   "additionalProperties": False},
+                  "gravity": {"type": "number", "exclusiveMinimum": 0}},
               "required": ["cables"], "additionalProperties": False}
 
     def check_description(self, desc: RobotDescription) -> None:
-        """`pulley` and `offset` must exist with one value per cable."""
+        """`pulley` and `offset` must exist with one value per cable; a weight or a mass, not both
+        (stored as `mass` and `weight_per_length`)."""
+        store_as_mass_and_weight(desc)
         n = len(desc.extra["cables"]["attachments"])
         for name, vartype in (("pulley", "point3"), ("offset", "scalar")):
             param = desc.parameters.get(name)

@@ -10,7 +10,7 @@ from fusionkit.api import RobotDescription, Spec, robot_description_data
 from .statics import N_CABLES, SagRobot
 
 ROBOT_NAME = "cdpr"  # the robot's key in the configs, truth and robots/cdpr.yaml the simulator writes
-GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N)
+GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N); a description may give its own `gravity`
 CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
 FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
 REFERENCE = {"type": "integer", "minimum": 0, "default": 0}  # the reference cable's index (thesis eq. 5.11)
@@ -28,8 +28,9 @@ def length_columns(spec: Spec, n: int) -> list[str]:
 
 def sag_robot_from(extra: dict, reference: int = 0) -> SagRobot:
     cables, ee = extra["cables"], extra["end_effector"]
+    g = float(extra.get("gravity", GRAVITY))  # the description's: the weight it was given, exactly
     return SagRobot(np.asarray(cables["attachments"], float), np.asarray(ee.get("com", [0, 0, 0]), float),
-                    GRAVITY * float(ee["mass"]), float(cables["weight_per_length"]), reference)
+                    g * float(ee["mass"]), float(cables["weight_per_length"]), reference)
 
 
 def sag_robot(desc: RobotDescription, reference: int = 0) -> SagRobot:
@@ -42,10 +43,11 @@ def check_sag_robot(spec: Spec, scope, n: int) -> None:
     if n != N_CABLES:
         raise spec.error("robot", f"the sag statics solve for a 4-cable suspended robot; {spec['robot']!r} has {n}")
     if "weight_per_length" not in extra["cables"]:
-        raise spec.error("robot", f"robot {spec['robot']!r} has no cables.weight_per_length (N/m); sagging "
-                         "cables need it")
+        raise spec.error("robot", f"robot {spec['robot']!r} has no cables.weight_per_length (N/m) or "
+                         "cables.mass_per_length (kg/m); sagging cables need it")
     if "mass" not in extra.get("end_effector", {}):
-        raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg); the statics need it")
+        raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg) or end_effector.weight "
+                         "(N); the statics need it")
     if spec["reference"] >= n:
         raise spec.error("reference", f"cable index {spec['reference']} out of range: the robot has cables 0..{n - 1}")
 
