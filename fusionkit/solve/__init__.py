@@ -9,7 +9,8 @@ from ..graph.builder import Problem
 from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
-from .factorization import linear_settings, qr_marginals
+from .covariance_recovery import recovered_marginals
+from .factorization import linear_settings
 from .incremental import solve_fixed_lag, solve_isam2
 from .marginals import tree_marginals
 from .result import SolveResult
@@ -44,7 +45,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
         if kind == "batch" and linear_settings(settings)[0]:
-            result.covariances = qr_marginals(graph, result.values, marginal_keys)
+            result.covariances = recovered_marginals(graph, result.values, marginal_keys, settings["ordering"])
         else:
             result.covariances = marginal_covariances(graph, result, marginal_keys)
         if settings["a_posteriori_sigmas"] and result.chi2_per_dof is not None:

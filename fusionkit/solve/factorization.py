@@ -13,7 +13,6 @@ eliminates 9 times faster (0.21 s vs 1.9 s measured); `solver.ordering: metis`.
 from __future__ import annotations
 
 import gtsam
-import numpy as np
 
 
 def linear_settings(settings: dict) -> tuple[bool, str]:
@@ -34,28 +33,3 @@ def solve_linear(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str = "c
     if not qr and ordering == "colamd":
         return linear.optimize()
     return eliminate(linear, qr, ordering).optimize()
-
-
-def qr_marginals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int]) -> dict[int, np.ndarray]:
-    """Marginal covariances (tangent space at `values`) from a dense QR of the whitened Jacobian:
-    Cov = (R^T R)^-1, without forming A^T A. Dense: meant for the graphs that need QR (hundreds to
-    a few thousand unknowns), not for long trajectories."""
-    linear = graph.linearize(values)
-    order = sorted(values.keys())
-    zero = values.zeroVectors()
-    dims = [zero.at(k).shape[0] for k in order]
-    start = dict(zip(order, np.concatenate([[0], np.cumsum(dims)[:-1]]).astype(int)))
-    n = int(sum(dims))
-    rows, cols, vals = linear.sparseJacobian_()
-    rows, cols = rows.astype(int) - 1, cols.astype(int) - 1
-    keep = cols < n  # the last column is the right-hand side
-    A = np.zeros((int(rows.max()) + 1, n))
-    A[rows[keep], cols[keep]] = vals[keep]
-    R = np.linalg.qr(A, mode="r")
-    R_inv = np.linalg.solve(R, np.eye(n))  # Cov = R^-1 R^-T
-    out = {}
-    for k in keys:
-        s, d = start[k], zero.at(k).shape[0]
-        block = R_inv[s:s + d]
-        out[k] = block @ block.T
-    return out

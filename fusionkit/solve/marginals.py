@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg
 
 
-def _frontal_count(cond: gtsam.GaussianConditional, dims: gtsam.VectorValues) -> int:
+def frontal_count(cond: gtsam.GaussianConditional, dims: gtsam.VectorValues) -> int:
     """How many of the conditional's keys are frontal (their dimensions add up to R's rows)."""
     keys, rows, d, n = cond.keys(), cond.R().shape[0], 0, 0
     while d < rows:
@@ -35,7 +35,7 @@ def tree_marginals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, keys
         cliques.setdefault(cond.firstFrontalKey(), cond)
     by_separator: dict[tuple, list] = {}
     for cond in cliques.values():
-        n = _frontal_count(cond, dims)
+        n = frontal_count(cond, dims)
         by_separator.setdefault(tuple(cond.keys()[n:]), []).append((cond, cond.keys()[:n]))
     out: dict[int, np.ndarray] = {}
     for separator, members in by_separator.items():

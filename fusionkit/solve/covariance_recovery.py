@@ -1,0 +1,69 @@
+"""Marginal covariances from a Bayes tree by top-down recovery, for graphs too ill-conditioned for
+GTSAM's marginals (which re-eliminate by Cholesky): the tree comes from a sparse QR of the whitened
+Jacobian, and each clique's conditional R x_F + S x_S = d gives the joint covariance of its variables
+from its separator's, which its parent holds (running intersection):
+
+    C_SS from the parent,  X = R^-1 S,  C_FF = R^-1 R^-T + X C_SS X^T,  C_FS = -X C_SS.
+
+One pass from the roots down, each clique's work cubic in its own size: time and memory linear in the
+number of cliques, where a dense QR of the whole Jacobian is cubic in the size of the problem.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import scipy.linalg
+
+from .factorization import eliminate
+from .marginals import frontal_count
+
+
+def recovered_marginals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
+                        ordering: str = "colamd") -> dict[int, np.ndarray]:
+    """Marginal covariance (tangent space at `values`) of each key, from the QR Bayes tree."""
+    tree = eliminate(graph.linearize(values), True, ordering)
+    dims = values.zeroVectors()
+    cliques, parent_of = {}, {}
+    for key in values.keys():
+        clique = tree[key]
+        first = clique.conditional().firstFrontalKey()
+        if first not in cliques:
+            cliques[first] = clique
+            parent_of[first] = None if clique.isRoot() else clique.parent().conditional().firstFrontalKey()
+    order, done = [], set()  # parents before children
+    for c in cliques:
+        chain = []
+        while c is not None and c not in done:
+            chain.append(c)
+            c = parent_of[c]
+        done.update(chain)
+        order.extend(reversed(chain))
+    joint: dict[int, tuple[dict[int, slice], np.ndarray]] = {}  # clique -> (key -> rows, joint covariance)
+    out: dict[int, np.ndarray] = {}
+    for c in order:
+        cond = cliques[c].conditional()
+        n = frontal_count(cond, dims)
+        frontal, separator = list(cond.keys()[:n]), list(cond.keys()[n:])
+        R_inv = scipy.linalg.solve_triangular(cond.R(), np.eye(cond.R().shape[0]))
+        sizes = [dims.at(k).shape[0] for k in frontal + separator]
+        starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+        index = {k: slice(starts[i], starts[i + 1]) for i, k in enumerate(frontal + separator)}
+        f = starts[n]
+        if separator:
+            rows, C_parent = joint[parent_of[c]]
+            sep = np.concatenate([np.arange(rows[k].start, rows[k].stop) for k in separator])
+            C_SS = C_parent[np.ix_(sep, sep)]
+            X = R_inv @ cond.S()
+            C = np.empty((starts[-1], starts[-1]))
+            C[:f, :f] = R_inv @ R_inv.T + X @ C_SS @ X.T
+            C[:f, f:] = -X @ C_SS
+            C[f:, :f] = C[:f, f:].T
+            C[f:, f:] = C_SS
+        else:
+            C = R_inv @ R_inv.T
+        joint[c] = (index, C)
+        for k in frontal:
+            if k in keys:
+                out[k] = C[index[k], index[k]].copy()
+    return out
