@@ -88,6 +88,7 @@ class SagCable(FactorType):
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}, "sigma": SIGMA,
                              "height_sigma": SIGMA, "reference": REFERENCE,  # height_sigma: `sigma` if absent
+                             "orientation_sigma": SIGMA,
                              "columns": {"type": "array", "items": {"type": "string"}},
                              "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
@@ -108,11 +109,14 @@ class SagCable(FactorType):
         z_all = np.column_stack([stream.column(c) for c in length_columns(spec, robot.n)])
         pulleys = [ctx.parameter(robot_name, "pulley", i) for i in range(robot.n)]
         offsets = [ctx.parameter(robot_name, "offset", i) for i in range(robot.n)]
+        tilt = gaussian([float(spec["orientation_sigma"])] * 3) if "orientation_sigma" in spec.data else None
         for k, row in zip(assoc.state, assoc.row):
             k = int(k)
             keys = [ctx.pose_key(robot_name, k), ctx.state_variable(robot_name, CORRECTION, ROT3, k),
                     ctx.state_variable(robot_name, FORCE, VECTOR2, k), *pulleys, *offsets]
             ctx.add(sag_factor(robot, z_all[row], keys, noise), spec, ctx.state_time(robot_name, k))
+            if tilt is not None:  # the measured orientation enters: the statics' own turn dR_k held near identity
+                ctx.add(gtsam.PriorFactorRot3(keys[1], gtsam.Rot3(), tilt), spec, ctx.state_time(robot_name, k))
 
     @classmethod
     def example(cls, rng):

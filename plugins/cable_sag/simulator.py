@@ -17,6 +17,8 @@ equilibrium poses, pulleys and offsets.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -66,10 +68,11 @@ class SagStaticSimulator(Simulator):
                              "initial_error": {"anyOf": [NONNEG, {"type": "null"}]},
                              "force_sigma": {"anyOf": [NONNEG, {"type": "null"}]},
                              "yaw_sigma_deg": NONNEG, "length_sigma": NONNEG,
-                             "pose_sigma": SIGMA},
+                             "pose_sigma": SIGMA, "com_error": NONNEG},
               "additionalProperties": False}
     defaults = {"robot": "cdpr_large", "poses": 35, "workspace": None, "initial_error": None,
-                "force_sigma": None, "yaw_sigma_deg": 1.0, "length_sigma": 0.001, "pose_sigma": POSE_SIGMA}
+                "force_sigma": None, "yaw_sigma_deg": 1.0, "length_sigma": 0.001, "pose_sigma": POSE_SIGMA,
+                "com_error": 0.0}
 
     def _params(self, params: dict) -> dict:
         p = {**self.defaults, **params}
@@ -84,6 +87,8 @@ class SagStaticSimulator(Simulator):
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
         p = self._params(params)
         robot, nominal = shipped_robot(p["robot"])
+        if p["com_error"] > 0:  # the true centre of mass is not the description's: statics tilt the robot otherwise
+            robot = replace(robot, com=robot.com + rng.normal(0.0, p["com_error"], 3))
         half = p["initial_error"] / np.sqrt(3.0)
         pulleys = nominal + rng.uniform(-half, half, nominal.shape)
         offsets = rng.uniform(-half, half, robot.n)
