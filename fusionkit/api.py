@@ -30,11 +30,12 @@ from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, no
                                 smooth_trajectory)
 from .testing import FactorExample
 
-API_VERSION = "1.3"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.4"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
 #      CLOCK_SCHEMA and clock_times (simulated clock drift)
+# 1.4: FactorType.review(ctx, spec, values) after solving; streams may repeat stamps (accepts_repeated_stamps)
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -148,6 +148,12 @@ class FactorType(Component):
         """Optional: after initialization, examine the data (e.g. observability) and report it
         with `ctx.add_diagnostic(spec.label, {...})`."""
 
+    def review(self, ctx: "BuildContext", spec: Spec, values: "Any") -> list[str]:
+        """Optional (API 1.4): after solving, examine the estimate `values` (gtsam.Values) against this
+        entry's factors (`ctx.records` with `spec.label`) and return notes for the report, e.g. residuals
+        that say the model misses something. Default: none."""
+        return []
+
     @classmethod
     @abstractmethod
     def example(cls, rng: "np.random.Generator"):

@@ -303,6 +303,9 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     timings["solve_and_marginals_s"] = time.perf_counter() - tic
     if problem.measurement_states is not None:  # time offsets whose estimate left their samples' windows
         problem.notes.extend(problem.measurement_states.beyond_windows(solution.values))
+    reg = registry()
+    for spec in config.factors:  # what each entry's factor type says of the estimate
+        problem.notes.extend(reg.get("factor_types", spec.type)().review(problem.context, spec, solution.values))
     timings["solve_s"] = solution.seconds
     _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)

@@ -76,6 +76,7 @@ class Problem:
     fixed_keys: set[int] = field(default_factory=set)  # `fixed: true` parameters: held, not estimated
     value_source: dict[str, str] = field(default_factory=dict)  # value-less parameter -> its initializer
     measurement_states: MeasurementStates | None = None  # entries with a time offset (time_offset/)
+    context: "BuildContext | None" = None  # what built it: factor types' review() after solving reads it
     _graph: gtsam.NonlinearFactorGraph | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
@@ -312,7 +313,7 @@ class BuildContext:
     def problem(self) -> Problem:
         return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
                        self.notes + self._unused_notes(), self.diagnostics, self.plots, self.fixed_keys,
-                       self.value_source, self.measurement_states)
+                       self.value_source, self.measurement_states, self)
 
     def require_values(self) -> None:
         """After the initializers: every parameter the description gives no value must have one now."""

@@ -27,6 +27,9 @@ ANCHOR_PARAMETER = {**NAME, "default": "anchor"}  # the anchors' point parameter
 RANGE_COLUMN = {**NAME, "default": "range"}       # with `anchor_column`: the ranges' column
 
 
+SCALE_NOTE = 0.01  # a range scale error beyond 1 % that the biases took is named in the report
+
+
 def lever_arm(desc, sensor: str | None) -> np.ndarray:
     """The tag's position on the body (m): its sensor mount's translation (origin without a tag)."""
     return np.zeros(3) if sensor is None else np.asarray(desc.sensors[sensor].mount.translation(), float)
@@ -168,6 +171,45 @@ class UwbRange(FactorType):
                 scale = ctx.parameter(robot, spec["scale"], None, k) if "scale" in spec.data else None
                 factor = scaled_range_factor(pose, anchor, bias, scale, b, z, noise, planar, anchor_type is POINT2)
             ctx.add(factor, spec, ctx.state_time(robot, k))
+
+    def review(self, ctx, spec: Spec, values) -> list[str]:
+        """Biases that grow with range: at the estimate, each range's bias (the estimated one plus its
+        residual) fitted as a constant per anchor plus s times the range; |s| above SCALE_NOTE and 5 of its
+        sigmas is a scale error (ranges (1 + s) too long) that the biases took, and the note says how to
+        estimate it. Only for entries with `bias:`, without `scale:` or `time_offset:`."""
+        if "bias" not in spec.data or "scale" in spec.data or "time_offset" in spec.data:
+            return []
+        states = ctx.state_set(spec["robot"], spec)
+        planar = states.family.vartype is POSE2
+        b = lever_arm(ctx.robot(spec["robot"]), spec.get("tag"))
+        read_pose = values.atPose2 if planar else values.atPose3
+        anchor_type = ctx.robot(spec["anchors"]).parameters[spec["anchor_parameter"]].vartype
+        read_anchor = values.atPoint2 if anchor_type is POINT2 else values.atPoint3
+        rows = []
+        for record in ctx.records:
+            if record.label != spec.label:
+                continue
+            pose_key, anchor_key, bias_key = record.factor.keys()
+            tag = np.asarray(read_pose(pose_key).transformFrom(b[:2] if planar else b))
+            point = np.asarray(read_anchor(anchor_key))
+            d = float(np.linalg.norm(tag - point[:len(tag)]))
+            rows.append((anchor_key, d, values.atDouble(bias_key) - float(record.factor.unwhitenedError(values)[0])))
+        anchors = sorted({a for a, _, _ in rows})
+        if len(rows) < len(anchors) + 10:
+            return []
+        column = {a: i for i, a in enumerate(anchors)}
+        A = np.column_stack([np.eye(len(anchors))[[column[a] for a, _, _ in rows]], [d for _, d, _ in rows]])
+        y = np.array([bias for _, _, bias in rows])
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        resid = y - A @ coef
+        sigma = float(np.sqrt(max(np.linalg.pinv(A.T @ A)[-1, -1] * (resid @ resid) / (len(y) - A.shape[1]), 0.0)))
+        scale = float(coef[-1])
+        if abs(scale) <= SCALE_NOTE or abs(scale) <= 5 * sigma:
+            return []
+        return [f"{spec.label}: the range biases grow with distance, by {100 * scale:+.1f} % (+-{100 * sigma:.1f}) of "
+                f"the range beyond a constant per anchor ({len(y)} ranges at the estimate): a scale error rather than "
+                f"a bias -- estimate it with `scale:` (a scalar parameter of robot {spec['robot']!r}, e.g. "
+                "uwb_scale: {value: 0.0, sigma: 0.1})"]
 
     @classmethod
     def example(cls, rng):
