@@ -107,6 +107,10 @@ def check_uwb(out: Path) -> None:
     assert _report(out, "uwb_lag")["solver"]["step_latency_ms"]["steps"] >= 400
     assert ate("uwb_two") < 0.1 and ate("uwb_two", "b") < 0.1
     assert ate("uwb_drone", "drone") < 0.05
+    rr = _report(out, "uwb_rr_result")  # measured: scale 0.059 +- 0.006, ATE 7.1 cm; without the scale 12.8 cm
+    assert any("round-robin ranging" in n for n in rr["notes"]) and ate("uwb_rr_result") < 0.1
+    assert abs(rr["parameters"]["a"]["uwb_scale"]["value"] - 0.05) < 3 * rr["parameters"]["a"]["uwb_scale"]["sigma"]
+    assert any("grow with distance" in n for n in _report(out, "uwb_rr_no_scale")["notes"])
 
 
 def check_multirobot(out: Path) -> None:
