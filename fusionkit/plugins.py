@@ -22,6 +22,7 @@ BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not t
 # the core's own components; every robot family, fusionkit's included, is an entry-point plugin
 DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
+    "fusionkit.data.static_segments",
     "fusionkit.robots.generic",
     "fusionkit.time_offset.guess",
 )

@@ -13,6 +13,13 @@ Parameters left null take the robot's values in PER_ROBOT. Streams (one sample p
 apart): `poses` (the vision system: true pose times Exp(xi), xi ~ N(0, pose_sigma), by default 1 cm / 5 mrad on either robot), `lengths` (l0..l3 = arc length + offset + N(0, length_sigma)), `force`
 (f: tension of the reference cable 0 at the end-effector + N(0, force_sigma)). Truth: the
 equilibrium poses, pulleys and offsets.
+
+`swing: {dwell: s, rate: Hz, amplitude: m, period: s, decay: s}`: the robot is held at each pose for
+`dwell` s (the poses `dwell` + 1 s apart) and every stream is sampled at `rate` during the dwell, the
+lengths and force constant (up to their noise) while the end-effector swings horizontally about its
+equilibrium, amplitude * exp(-tau / decay) * sin(2 pi tau / period), in a random direction: the
+recording a static model meets on a real robot. The truth is then one pose per sample (swing
+included); the static poses are what `static_segments` recovers.
 """
 
 from __future__ import annotations
@@ -58,6 +65,27 @@ HEIGHT_SIGMA = 0.01
 REFINED_HEIGHT_SIGMA = 1e-4
 
 
+POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+
+
+def _dwell_and_swing(swing: dict, poses: np.ndarray, lengths: np.ndarray, force: np.ndarray,
+                     rng: np.random.Generator):
+    """Each static pose held `dwell` s, sampled at `rate`: (t, true poses with the swing, lengths, force)."""
+    tau = np.arange(0.0, swing["dwell"], 1.0 / swing["rate"])
+    out_t, out_poses, out_lengths, out_force = [], [], [], []
+    for k, (pose, length, f) in enumerate(zip(poses, lengths, force)):
+        heading = rng.uniform(0.0, 2 * np.pi)
+        phase = swing["amplitude"] * np.exp(-tau / swing["decay"]) * np.sin(2 * np.pi * tau / swing["period"])
+        moved = np.tile(pose, (len(tau), 1))
+        moved[:, 0] += phase * np.cos(heading)
+        moved[:, 1] += phase * np.sin(heading)
+        out_t.append(k * (swing["dwell"] + 1.0) + tau)
+        out_poses.append(moved)
+        out_lengths.append(np.tile(length, (len(tau), 1)))
+        out_force.append(np.full(len(tau), f))
+    return np.concatenate(out_t), np.vstack(out_poses), np.vstack(out_lengths), np.concatenate(out_force)
+
+
 class SagStaticSimulator(Simulator):
     name = "cable.sag_static"
     summary = ("static poses of a suspended 4-cable robot with heavy sagging cables (catenary statics): "
@@ -68,11 +96,17 @@ class SagStaticSimulator(Simulator):
                              "initial_error": {"anyOf": [NONNEG, {"type": "null"}]},
                              "force_sigma": {"anyOf": [NONNEG, {"type": "null"}]},
                              "yaw_sigma_deg": NONNEG, "length_sigma": NONNEG,
-                             "pose_sigma": SIGMA, "com_error": NONNEG},
+                             "pose_sigma": SIGMA, "com_error": NONNEG,
+                             "swing": {"anyOf": [{"type": "null"}, {
+                                 "type": "object",
+                                 "properties": {"dwell": POSITIVE, "rate": POSITIVE, "amplitude": NONNEG,
+                                                "period": POSITIVE, "decay": POSITIVE},
+                                 "required": ["dwell", "rate", "amplitude", "period", "decay"],
+                                 "additionalProperties": False}]}},
               "additionalProperties": False}
     defaults = {"robot": "cdpr_large", "poses": 35, "workspace": None, "initial_error": None,
                 "force_sigma": None, "yaw_sigma_deg": 1.0, "length_sigma": 0.001, "pose_sigma": POSE_SIGMA,
-                "com_error": 0.0}
+                "com_error": 0.0, "swing": None}
 
     def _params(self, params: dict) -> dict:
         p = {**self.defaults, **params}
@@ -97,11 +131,14 @@ class SagStaticSimulator(Simulator):
             raise ConfigError(f"<simulate {self.name}>: workspace min must be below max on every axis")
         states = [self._static_pose(rng, lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
                   for _ in range(p["poses"])]
-        t = np.arange(p["poses"], dtype=float)
         truth = np.array([np.concatenate([s.t, Rotation.from_matrix(s.R).as_quat()]) for s in states])
         lengths = np.array([s.state.length for s in states]) + offsets
+        force = np.array([s.forces[robot.reference] for s in states])
+        t = np.arange(p["poses"], dtype=float)
+        if p["swing"]:
+            t, truth, lengths, force = _dwell_and_swing(p["swing"], truth, lengths, force, rng)
         lengths = lengths + rng.normal(0.0, p["length_sigma"], lengths.shape)
-        force = np.array([s.forces[robot.reference] for s in states]) + rng.normal(0.0, p["force_sigma"], len(t))
+        force = force + rng.normal(0.0, p["force_sigma"], len(t))
         seen = noisy(poses_from_array(truth), p["pose_sigma"], rng)
         streams = {"poses": pose_stream("poses", t, seen, "simulated:poses"),
                    "lengths": Stream("lengths", t, tuple(f"l{i}" for i in range(robot.n)), lengths,
