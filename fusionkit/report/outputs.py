@@ -1,4 +1,4 @@
-"""report.json, calibration.yaml, trajectories/<robot>.tum, each robot model's own files
+"""report.json, report.html, calibration.yaml, trajectories/<robot>.tum, each robot model's own files
 (`RobotModel.outputs`) and, when asked, covariances/<robot>.csv from a RunResult."""
 
 from __future__ import annotations
@@ -182,6 +182,8 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
         from .plots import write_plots
         (out / "plots").mkdir()
         write_plots(result, out / "plots")
+    from .html import report_html
+    (out / "report.html").write_text(report_html(result, out / "plots" if plots else None), encoding="utf-8")
     for robot, setup in result.config.robots.items():  # model-specific files (RobotModel.outputs)
         model = registry().get("robot_models", setup.description.model)
         write_files(out, model().outputs(robot, calibrated_description(result, robot)), f"robot model {model.name}")

@@ -9,7 +9,7 @@ from ..graph.variables import COMPONENTS
 from ..robots.calibration_file import SIGMA_AXES
 
 
-def _fmt(values, sigma, kind: str = "") -> str:
+def format_value(values, sigma, kind: str = "") -> str:
     """`2.5 ± 0.01`; types with named components: `x 1, y 2, ... ± rx 0.01, ...` (sigma: 2 significant digits)."""
     v = np.atleast_1d(np.asarray(values, dtype=float))
     s = None if sigma is None else np.atleast_1d(np.asarray(sigma, dtype=float))
@@ -46,7 +46,7 @@ def summary_text(result: RunResult) -> str:
             vt = est.family.vartype
             for i, v in enumerate(est.values):
                 label = f"{robot}/{name}" + (f"[{i}]" if len(est.values) > 1 else "")
-                text = _fmt(vt.to_list(v), None if est.sigma is None else est.sigma[i], vt.name)
+                text = format_value(vt.to_list(v), None if est.sigma is None else est.sigma[i], vt.name)
                 err = perrs.get(robot, {}).get(name)
                 if err:
                     text += f"   (error vs truth {err['abs_error'][i]:.3g})"

@@ -1,0 +1,108 @@
+"""report.html: one self-contained page (inline style, plots embedded as data URIs, no network) beside
+report.json: the solver's summary, parameters with sigmas and errors against truth, trajectory errors and
+their sigma consistency, the plots, the diagnostics' verdicts and the notes."""
+
+from __future__ import annotations
+
+import base64
+from html import escape
+from pathlib import Path
+
+from .. import __version__
+from ..pipeline import RunResult
+from .summary import format_value
+
+STYLE = """body{font-family:system-ui,sans-serif;margin:2em auto;max-width:70em;color:#222}
+h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:left}
+th{background:#f3f3f3}.bad{color:#b00;font-weight:bold}.small{color:#666;font-size:.9em}
+img{max-width:100%;border:1px solid #ddd;margin:.5em 0}li{margin:.2em 0}"""
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    cells = "".join(f"<th>{escape(h)}</th>" for h in head)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table><tr>{cells}</tr>{body}</table>"
+
+
+def _solver(result: RunResult) -> str:
+    s = result.solution
+    rows = [["solver", escape(s.solver)], ["iterations / steps", str(s.iterations)],
+            ["cost", f"{s.initial_error:.4g} &rarr; {s.final_error:.4g}"],
+            ["chi-square per degree of freedom", "-" if s.chi2_per_dof is None else f"{s.chi2_per_dof:.3g}"],
+            ["solve time", f"{s.seconds:.3f} s"]]
+    if s.rejection:
+        rows.append(["status", f"<span class=bad>REJECTED by the chi-square gate</span>: {escape(str(s.rejection))}"])
+    latency = s.stats().get("step_latency_ms")
+    if latency:
+        rows.append(["per-step latency", f"p50 {latency['p50']:.3f} ms, p99 {latency['p99']:.3f} ms"])
+    return _table(["", ""], rows)
+
+
+def _parameters(result: RunResult) -> str:
+    errors = result.evaluation.get("parameters", {})
+    rows = []
+    for robot, params in result.parameters.items():
+        for name, est in params.items():
+            if est.series_t is not None:
+                continue
+            err = errors.get(robot, {}).get(name, {})
+            for i, v in enumerate(est.values):
+                label = f"{robot}/{name}" + (f"[{i}]" if len(est.values) > 1 else "")
+                vt = est.family.vartype
+                value = format_value(vt.to_list(v), None if est.sigma is None else est.sigma[i], vt.name)
+                truth = f"{err['abs_error'][i]:.3g}" if "abs_error" in err else ""
+                if "aligned_abs_error" in err:
+                    truth += f" (aligned {err['aligned_abs_error'][i]:.3g})"
+                z = err.get("z_per_axis")
+                zs = ", ".join(f"{x:+.2f}" for x in z[i]) if z else ""
+                rows.append([escape(label), escape(value), truth, zs])
+    if not rows:
+        return "<p>No static parameters estimated.</p>"
+    return _table(["parameter", "estimate &plusmn; 1-sigma", "error vs truth", "error / sigma"], rows)
+
+
+def _trajectories(result: RunResult) -> str:
+    rows = []
+    for robot, ev in result.evaluation.get("trajectories", {}).items():
+        ate = f"{ev['ate_rmse_m']:.4f} m (align {escape(ev['align'])})" if "ate_rmse_m" in ev else "-"
+        rpe = (f"{ev['rpe_translation_rmse_m']:.4f} m / {ev['rpe_rotation_rmse_deg']:.3f} deg"
+               if "rpe_translation_rmse_m" in ev else "-")
+        c = ev.get("consistency_percent")
+        within = "; ".join(f"{ax} {c[ax]['1sigma']:.0f}/{c[ax]['2sigma']:.0f}/{c[ax]['3sigma']:.0f} %" for ax in c) if c else "-"
+        rows.append([escape(robot), f"{ev['matched_poses']} of {ev['states']}", ate, rpe, within])
+    if not rows:
+        return "<p>No ground truth trajectory: no trajectory errors.</p>"
+    return _table(["robot", "states matched to truth", "ATE RMSE", "RPE per step", "inside 1/2/3 sigma (ideal 68/95/99.7)"],
+                  rows)
+
+
+def _plots(folder: Path | None) -> str:
+    if folder is None or not folder.is_dir():
+        return "<p class=small>Plots were not made (--no-plots).</p>"
+    images = []
+    for png in sorted(folder.glob("*.png")):
+        data = base64.b64encode(png.read_bytes()).decode("ascii")
+        images.append(f"<h3>{escape(png.stem.replace('_', ' '))}</h3><img alt='{escape(png.name)}' "
+                      f"src='data:image/png;base64,{data}'>")
+    return "".join(images) or "<p class=small>No plots.</p>"
+
+
+def report_html(result: RunResult, plots: Path | None) -> str:
+    """The page; `plots`: the folder of this run's PNGs to embed (None without plots)."""
+    verdicts = [f"<li><b>{escape(label)}</b>: {escape(sentence)}</li>"
+                for label, d in result.problem.diagnostics.items() for sentence in d.get("verdict", [])]
+    notes = [f"<li>{escape(note)}</li>" for note in result.notes]
+    return "".join([
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        f"<title>fusionkit: {escape(result.config.name)}</title><style>{STYLE}</style></head><body>",
+        f"<h1>fusionkit: {escape(result.config.name)}</h1>",
+        f"<p class=small>config {escape(str(result.config.doc.file))}; fusionkit {escape(__version__)}; "
+        "the same figures as report.json</p>",
+        "<h2>Solver</h2>", _solver(result),
+        "<h2>Parameters</h2>", _parameters(result),
+        "<h2>Trajectories</h2>", _trajectories(result),
+        "<h2>Plots</h2>", _plots(plots),
+        "<h2>Diagnostics</h2>", f"<ul>{''.join(verdicts)}</ul>" if verdicts else "<p>None.</p>",
+        "<h2>Notes</h2>", f"<ul>{''.join(notes)}</ul>" if notes else "<p>None.</p>",
+        "</body></html>\n"])
