@@ -11,6 +11,7 @@ import numpy as np
 from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec
 
 from .model import cable_robot
+from .pulley import pulley_cables
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
 
 SIGMA = {"type": "number", "exclusiveMinimum": 0}
@@ -37,9 +38,30 @@ def attachment_offset(b: np.ndarray) -> gtsam.Pose3:
     return gtsam.Pose3(gtsam.Rot3(), np.asarray(b, float))
 
 
+def _pulley_error(b: np.ndarray, rho: float, axis: np.ndarray, z: float, this, v: gtsam.Values, H) -> np.ndarray:
+    """e = l(P, A) + l0 - z over a swivelling pulley (pulley.py), P = X b: de/dX = n^T [-R [b]x, R],
+    de/dA = -n^T, de/dl0 = 1 (n: the free cable's unit vector)."""
+    k = this.keys()
+    pose = v.atPose3(k[0])
+    D = np.zeros((3, 6), order="F")
+    P = pose.transformFrom(b, D)
+    length, n = pulley_cables(P, v.atPoint3(k[1]), rho, axis)
+    if H is not None:
+        H[0] = (n[0] @ D).reshape(1, 6)
+        H[1] = -n[0].reshape(1, 3)
+        H[2] = np.ones((1, 1))
+    return np.array([length[0] + v.atDouble(k[2]) - z])
+
+
+def pulley_cable_factor(pose: int, pulley: int, offset: int, b, rho: float, axis, z: float, noise):
+    return gtsam.CustomFactor(noise, [pose, pulley, offset], partial(_pulley_error, np.asarray(b, float), float(rho),
+                                                                     np.asarray(axis, float), float(z)))
+
+
 class CableLength(FactorType):
     name = "cable.length"
-    summary = "rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (thesis eq. 4.1): native GTSAM range+bias factor"
+    summary = ("rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (thesis eq. 4.1): native GTSAM range+bias "
+               "factor; over a swivelling pulley of the description's pulley_radius, its length from a_i")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",
@@ -68,7 +90,11 @@ class CableLength(FactorType):
             mount = attachment_offset(cdpr.attachments[i])
             z = stream.column(columns[i])[assoc.row]
             for k, zk in zip(assoc.state, z):
-                factor = range_factor(ctx.pose_key(robot, int(k)), pulley, float(zk), noise, mount, offset)
+                if cdpr.pulley_radius > 0:  # the cable leaves a swivelling pulley of that radius (pulley.py)
+                    factor = pulley_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
+                                                 cdpr.pulley_radius, cdpr.swivel_axis, float(zk), noise)
+                else:
+                    factor = range_factor(ctx.pose_key(robot, int(k)), pulley, float(zk), noise, mount, offset)
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
     def diagnose(self, ctx, spec: Spec) -> None:
@@ -78,15 +104,21 @@ class CableLength(FactorType):
 
     @classmethod
     def example(cls, rng):
-        pose = gtsam.Pose3.Expmap(rng.normal(size=6))
-        b, a, l0 = rng.normal(size=3) * 0.2, rng.normal(size=3) * 3, float(rng.normal())
-        z = float(np.linalg.norm(pose.transformFrom(b) - a)) + l0
+        """Half of the examples over a swivelling pulley of 3-8 cm (the attachment point 1-2 m below it)."""
+        pose = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3))
+        b, l0 = rng.normal(size=3) * 0.2, float(rng.normal())
+        a = pose.transformFrom(b) + np.r_[rng.normal(size=2), rng.uniform(1.0, 2.0)]
         values = gtsam.Values()
         values.insert(0, pose)
         values.insert(1, a)
         values.insert(2, l0)
-        return FactorExample(gtsam.RangeFactorWithTransformBias3D(0, 1, 2, z, gaussian([0.001]),
-                                                                  attachment_offset(b)), values)
+        if rng.random() < 0.5:
+            z = float(np.linalg.norm(pose.transformFrom(b) - a)) + l0
+            return FactorExample(gtsam.RangeFactorWithTransformBias3D(0, 1, 2, z, gaussian([0.001]),
+                                                                      attachment_offset(b)), values)
+        rho, axis = float(rng.uniform(0.03, 0.08)), np.array([0.0, 0.0, 1.0])
+        z = float(pulley_cables(pose.transformFrom(b), a, rho, axis)[0][0]) + l0
+        return FactorExample(pulley_cable_factor(0, 1, 2, b, rho, axis, z, gaussian([0.001])), values)
 
 
 def _elastic_error(b: np.ndarray, stretch: float, z: float, this, v: gtsam.Values, H) -> np.ndarray:
@@ -119,6 +151,9 @@ class ElasticCableLength(FactorType):
         check_cables(spec, "cables", n)
         if "stiffness_EA" not in scope.robots[spec["robot"]].extra["cables"]:
             raise spec.error("robot", f"robot {spec['robot']!r} has no cables.stiffness_EA; elastic cables need it")
+        if scope.robots[spec["robot"]].extra["cables"].get("pulley_radius", 0):
+            raise spec.error("robot", f"robot {spec['robot']!r} has a pulley_radius, which cable.elastic_length does "
+                             "not model (cable.length does)")
         scope.require_values(spec, "robot", "offset", "to scale the tension noise by the cable length")
         scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
         tcols = tuple(spec.get("tension_columns") or [f"T{i}" for i in range(n)])

@@ -7,6 +7,8 @@ Model keys of the description (besides frames, sensors, parameters):
       attachments: [[x, y, z], ...]   # b_i: attachment points in the end-effector frame (m)
       stiffness_EA: 2.0e4             # axial stiffness E*A (N); absent: rigid cables
       weight_per_length: 0.10         # cable weight per metre g_c (N/m); or mass_per_length (kg/m); absent: massless
+      pulley_radius: 0.04             # m: swivelling pulleys of this radius (absent or 0: a fixed exit point)
+      swivel_axis: [0, 0, 1]          # the direction the cable travels as it reaches each pulley (default up)
     end_effector:
       mass: 2.5                       # kg; or weight (N)
       com: [0, 0, -0.05]              # centre of mass in the end-effector frame (m)
@@ -16,13 +18,13 @@ Masses and weights are both published; whichever the description gives is stored
 `weight_per_length` (N/m) once the description is checked, converted with its `gravity`.
 
 Calibration parameters it requires: `pulley` (point3, one per cable: a_i, the point where cable
-i leaves its pulley, base frame) and `offset` (scalar, one per cable: l0_i, encoder reading minus
+i leaves its pulley, base frame; with a `pulley_radius`, the swivel point where it reaches the pulley) and `offset` (scalar, one per cable: l0_i, encoder reading minus
 cable length, m).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,6 +42,8 @@ class CableRobot:
     weight_per_length: float | None
     mass: float | None
     com: np.ndarray
+    pulley_radius: float = 0.0
+    swivel_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
 
     @property
     def n(self) -> int:
@@ -49,7 +53,8 @@ class CableRobot:
 def cable_robot(desc: RobotDescription) -> CableRobot:
     cables, ee = desc.extra["cables"], desc.extra.get("end_effector", {})
     return CableRobot(np.asarray(cables["attachments"], float), cables.get("stiffness_EA"),
-                      cables.get("weight_per_length"), ee.get("mass"), np.asarray(ee.get("com", [0, 0, 0]), float))
+                      cables.get("weight_per_length"), ee.get("mass"), np.asarray(ee.get("com", [0, 0, 0]), float),
+                      float(cables.get("pulley_radius", 0.0)), np.asarray(cables.get("swivel_axis", [0, 0, 1]), float))
 
 
 GRAVITY = 9.81  # m/s^2, unless the description gives `gravity`
@@ -77,7 +82,9 @@ class CdprModel(RobotModel):
                              "properties": {"attachments": {"type": "array", "items": VEC3, "minItems": 1},
                                             "stiffness_EA": {"type": "number", "exclusiveMinimum": 0},
                                             "weight_per_length": {"type": "number", "exclusiveMinimum": 0},
-                                            "mass_per_length": {"type": "number", "exclusiveMinimum": 0}},
+                                            "mass_per_length": {"type": "number", "exclusiveMinimum": 0},
+                                            "pulley_radius": {"type": "number", "minimum": 0},
+                                            "swivel_axis": VEC3},
                              "required": ["attachments"], "additionalProperties": False},
                   "end_effector": {"type": "object",
                                    "properties": {"mass": {"type": "number", "exclusiveMinimum": 0},
@@ -91,6 +98,9 @@ class CdprModel(RobotModel):
         """`pulley` and `offset` must exist with one value per cable; a weight or a mass, not both
         (stored as `mass` and `weight_per_length`)."""
         store_as_mass_and_weight(desc)
+        axis = desc.extra["cables"].get("swivel_axis")
+        if axis is not None and np.linalg.norm(axis) == 0:
+            raise desc.error(("cables", "swivel_axis"), "expected a direction (a non-zero vector)")
         n = len(desc.extra["cables"]["attachments"])
         for name, vartype in (("pulley", "point3"), ("offset", "scalar")):
             param = desc.parameters.get(name)

@@ -32,7 +32,7 @@ Everything but the per-pose gtsam conversions and the tiny per-pose NNLS is vect
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import brentq, nnls
@@ -41,6 +41,8 @@ from scipy.spatial.transform import Rotation
 from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, ConfigError, clock_times, noisy, odometry, pose_stream,
                            poses_from_array, robot_description_data, sample_times, Simulator, SourceOutput, Stream)
 from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
+
+from .pulley import pulley_cables
 
 GRAVITY = 9.81
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
@@ -57,6 +59,7 @@ MIXED_FRACTION = 0.4     # mixed 3-D segment (ARAS-CAM: more and a cable goes sl
 MAX_AMPLITUDE = 2.0      # m: large robots keep moderate speeds (lengthen `duration` to go slower)
 MIN_CLEARANCE = 0.5      # attachments stay at least this far below the lowest pulley (m)
 ORIENTATION_DEG = (2.0, 2.0, 4.0)  # roll, pitch, yaw amplitude in the mixed segment
+SWIVEL_AXIS = np.array([0.0, 0.0, 1.0])  # simulated pulleys turn about the vertical; the cable arrives going up
 REGION_MARGIN = 1.0      # m: the Monte-Carlo search region is the nominal pulleys' box grown by this
 SCALE_RANGE = (0.2, 10.0)
 # The zero pose defines the base frame (it is not measured): a looser prior adds its own
@@ -66,11 +69,12 @@ ORIGIN_SIGMA = 1e-6  # the VO scale is searched over this range (metres per VO u
 
 @dataclass(frozen=True)
 class Geometry:
-    pulleys: np.ndarray            # (n, 3) a_i, base frame
+    pulleys: np.ndarray            # (n, 3) a_i, base frame (with a pulley radius: the swivel points)
     attachments: np.ndarray        # (n, 3) b_i, end-effector frame
     stiffness_EA: float | None
     mass: float
     com: np.ndarray
+    pulley_radius: float = 0.0     # m: swivelling pulleys (pulley.py); 0: fixed exit points
 
     @property
     def n(self) -> int:
@@ -93,8 +97,14 @@ def onto_best_fit_plane(points: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------- kinematics
 def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
-    """Lengths l*_i (N, n) of thesis eq. 4.1 and the lever arms R b_i (N, n, 3) of each attachment."""
+    """Lengths l*_i (N, n) of thesis eq. 4.1 (over swivelling pulleys of geo.pulley_radius, turning about
+    the vertical, when it is set) and the lever arms R b_i (N, n, 3) of each attachment."""
     arms = np.einsum("kij,cj->kci", rot, geo.attachments)
+    if geo.pulley_radius > 0:
+        points = pos[:, None, :] + arms
+        lengths = np.column_stack([pulley_cables(points[:, i], np.broadcast_to(geo.pulleys[i], points[:, i].shape),
+                                                 geo.pulley_radius, SWIVEL_AXIS)[0] for i in range(geo.n)])
+        return lengths, arms
     d = geo.pulleys[None] - (pos[:, None, :] + arms)
     return np.linalg.norm(d, axis=2), arms
 
@@ -297,6 +307,7 @@ class CdprSimulator(Simulator):
                              "motion": {"enum": ["smooth", "dynamic"]},
                              "duration": POSITIVE, "rate": POSITIVE, "scale": POSITIVE,
                              "pulley_error": NONNEG, "coplanar_pulleys": {"type": "boolean"},
+                             "pulley_radius": NONNEG,
                              "vo_sigma": SIGMA, "dynamic_vo_factor": {"type": "number", "minimum": 1},
                              "encoder_sigma": NONNEG, "tension_resolution": NONNEG, "tension_sigma": NONNEG,
                              "mocap_sigma": SIGMA, "mocap_every": {"type": "integer", "minimum": 1},
@@ -306,7 +317,7 @@ class CdprSimulator(Simulator):
                                              "properties": {"lengths": CLOCK_SCHEMA, "tensions": CLOCK_SCHEMA}}},
               "additionalProperties": False}
     defaults = {"robot": "arascam", "motion": "smooth", "duration": 25.0, "rate": 30.0, "scale": 2.0,
-                "pulley_error": 0.05, "coplanar_pulleys": True,
+                "pulley_error": 0.05, "coplanar_pulleys": True, "pulley_radius": 0.0,
                 "vo_sigma": {"rotation": 0.001, "translation": 0.0005}, "dynamic_vo_factor": 2.5,
                 "encoder_sigma": 0.001, "tension_resolution": 0.25, "tension_sigma": 0.1,
                 "mocap_sigma": {"rotation": 0.002, "translation": 0.001}, "mocap_every": 1,
@@ -352,7 +363,8 @@ class CdprSimulator(Simulator):
         true_pulleys = nominal.pulleys + rng.normal(0.0, p["pulley_error"], nominal.pulleys.shape)
         if p["coplanar_pulleys"]:
             true_pulleys = onto_best_fit_plane(true_pulleys)
-        geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com)
+        geo = Geometry(true_pulleys, nominal.attachments, nominal.stiffness_EA, nominal.mass, nominal.com,
+                       p["pulley_radius"])
 
         # commanded (quasi-static) pose -> tensions and cable lengths the encoders read (stamped by their clock)
         tension = static_tensions(plan.pos, plan.rot, geo)
@@ -405,7 +417,9 @@ class CdprSimulator(Simulator):
         a `vo_scale` (1.0 +- 10, as in arascam) are added where the description has none."""
         p = self._params(params)
         desc = robot_description_data(p["robot"])
-        geo = nominal_geometry(desc)
+        geo = replace(nominal_geometry(desc), pulley_radius=p["pulley_radius"])
+        if p["pulley_radius"] > 0:  # the written description models the pulleys (remove it to ignore them)
+            desc["cables"].update(pulley_radius=p["pulley_radius"], swivel_axis=SWIVEL_AXIS.tolist())
         home = home_position(desc)
         length, _ = cable_vectors(home[None], np.eye(3)[None], geo)
         desc["parameters"]["offset"]["values"] = [round(-float(x), 3) for x in length[0]]
