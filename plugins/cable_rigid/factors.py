@@ -38,26 +38,6 @@ def attachment_offset(b: np.ndarray) -> gtsam.Pose3:
     return gtsam.Pose3(gtsam.Rot3(), np.asarray(b, float))
 
 
-def _pulley_error(b: np.ndarray, rho: float, axis: np.ndarray, z: float, this, v: gtsam.Values, H) -> np.ndarray:
-    """e = l(P, A) + l0 - z over a swivelling pulley (pulley.py), P = X b: de/dX = n^T [-R [b]x, R],
-    de/dA = -n^T, de/dl0 = 1 (n: the free cable's unit vector)."""
-    k = this.keys()
-    pose = v.atPose3(k[0])
-    D = np.zeros((3, 6), order="F")
-    P = pose.transformFrom(b, D)
-    length, n = pulley_cables(P, v.atPoint3(k[1]), rho, axis)
-    if H is not None:
-        H[0] = (n[0] @ D).reshape(1, 6)
-        H[1] = -n[0].reshape(1, 3)
-        H[2] = np.ones((1, 1))
-    return np.array([length[0] + v.atDouble(k[2]) - z])
-
-
-def pulley_cable_factor(pose: int, pulley: int, offset: int, b, rho: float, axis, z: float, noise):
-    return gtsam.CustomFactor(noise, [pose, pulley, offset], partial(_pulley_error, np.asarray(b, float), float(rho),
-                                                                     np.asarray(axis, float), float(z)))
-
-
 class CableLength(FactorType):
     name = "cable.length"
     summary = ("rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (thesis eq. 4.1): native GTSAM range+bias "
@@ -91,8 +71,8 @@ class CableLength(FactorType):
             z = stream.column(columns[i])[assoc.row]
             for k, zk in zip(assoc.state, z):
                 if cdpr.pulley_radius > 0:  # the cable leaves a swivelling pulley of that radius (pulley.py)
-                    factor = pulley_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
-                                                 cdpr.pulley_radius, cdpr.swivel_axis, float(zk), noise)
+                    factor = elastic_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
+                                                  0.0, float(zk), noise, cdpr.pulley_radius, cdpr.swivel_axis)
                 else:
                     factor = range_factor(ctx.pose_key(robot, int(k)), pulley, float(zk), noise, mount, offset)
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
@@ -118,22 +98,27 @@ class CableLength(FactorType):
                                                                       attachment_offset(b)), values)
         rho, axis = float(rng.uniform(0.03, 0.08)), np.array([0.0, 0.0, 1.0])
         z = float(pulley_cables(pose.transformFrom(b), a, rho, axis)[0][0]) + l0
-        return FactorExample(pulley_cable_factor(0, 1, 2, b, rho, axis, z, gaussian([0.001])), values)
+        return FactorExample(elastic_cable_factor(0, 1, 2, b, 0.0, z, gaussian([0.001]), rho, axis), values)
 
 
-def _elastic_error(b: np.ndarray, stretch: float, z: float, this, v: gtsam.Values, H) -> np.ndarray:
+def _elastic_error(b: np.ndarray, stretch: float, z: float, rho: float, axis, this, v: gtsam.Values, H) -> np.ndarray:
     k = this.keys()
-    return elastic_cable_residual(v.atPose3(k[0]), v.atPoint3(k[1]), v.atDouble(k[2]), b, stretch, z, H)
+    return elastic_cable_residual(v.atPose3(k[0]), v.atPoint3(k[1]), v.atDouble(k[2]), b, stretch, z, H, rho, axis)
 
 
-def elastic_cable_factor(pose: int, pulley: int, offset: int, b, stretch: float, z: float, noise):
-    return gtsam.CustomFactor(noise, [pose, pulley, offset], partial(_elastic_error, np.asarray(b, float),
-                                                                     float(stretch), float(z)))
+def elastic_cable_factor(pose: int, pulley: int, offset: int, b, stretch: float, z: float, noise, rho: float = 0.0,
+                         axis=None):
+    """e = (1 - stretch) l* + l0 - z (residuals.elastic_cable_residual); stretch 0 is a rigid cable, and with
+    a pulley radius `rho` the length runs over a pulley swivelling about `axis`."""
+    return gtsam.CustomFactor(noise, [pose, pulley, offset],
+                              partial(_elastic_error, np.asarray(b, float), float(stretch), float(z), float(rho),
+                                      None if axis is None else np.asarray(axis, float)))
 
 
 class ElasticCableLength(FactorType):
     name = "cable.elastic_length"
-    summary = "elastic cable with measured tension T_i: z_i = (1 - T_i/EA) l*_i + l0_i (thesis eq. 4.2)"
+    summary = ("elastic cable with measured tension T_i: z_i = (1 - T_i/EA) l*_i + l0_i (thesis eq. 4.2); over "
+               "swivelling pulleys when the description has a pulley_radius")
     robot_fields = ("robot",)
     stream_fields = ("stream", "tension_stream")
     schema = {"type": "object",
@@ -151,9 +136,6 @@ class ElasticCableLength(FactorType):
         check_cables(spec, "cables", n)
         if "stiffness_EA" not in scope.robots[spec["robot"]].extra["cables"]:
             raise spec.error("robot", f"robot {spec['robot']!r} has no cables.stiffness_EA; elastic cables need it")
-        if scope.robots[spec["robot"]].extra["cables"].get("pulley_radius", 0):
-            raise spec.error("robot", f"robot {spec['robot']!r} has a pulley_radius, which cable.elastic_length does "
-                             "not model (cable.length does)")
         scope.require_values(spec, "robot", "offset", "to scale the tension noise by the cable length")
         scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))
         tcols = tuple(spec.get("tension_columns") or [f"T{i}" for i in range(n)])
@@ -185,7 +167,8 @@ class ElasticCableLength(FactorType):
                 # tension noise enters through the length: d e / d T = -l*/EA, with l* ~ z - l0
                 sigma = np.hypot(spec["sigma"], (z - float(offsets[i])) / cdpr.stiffness_EA * spec["tension_sigma"])
                 factor = elastic_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
-                                              stretch, z, ctx.noise([sigma], spec))
+                                              stretch, z, ctx.noise([sigma], spec), cdpr.pulley_radius,
+                                              cdpr.swivel_axis)
                 ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
     @classmethod
@@ -193,12 +176,15 @@ class ElasticCableLength(FactorType):
         pose = gtsam.Pose3.Expmap(rng.normal(size=6))
         b, a, l0 = rng.normal(size=3) * 0.2, rng.normal(size=3) * 3, float(rng.normal())
         stretch = float(rng.uniform(0.0, 0.01))
-        z = (1 - stretch) * float(np.linalg.norm(pose.transformFrom(b) - a)) + l0
+        rho, axis = (float(rng.uniform(0.03, 0.08)), np.array([0.0, 0.0, 1.0])) if rng.random() < 0.5 else (0.0, None)
+        if rho:  # the attachment 1-2 m below the pulley
+            a = pose.transformFrom(b) + np.r_[rng.normal(size=2), rng.uniform(1.0, 2.0)]
+        z = (1 - stretch) * float(pulley_cables(pose.transformFrom(b), a, rho, axis if rho else np.ones(3))[0][0]) + l0
         values = gtsam.Values()
         values.insert(0, pose)
         values.insert(1, a)
         values.insert(2, l0)
-        return FactorExample(elastic_cable_factor(0, 1, 2, b, stretch, z, gaussian([0.001])), values)
+        return FactorExample(elastic_cable_factor(0, 1, 2, b, stretch, z, gaussian([0.001]), rho, axis), values)
 
 
 class PulleyDistance(FactorType):

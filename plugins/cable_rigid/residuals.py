@@ -7,15 +7,25 @@ import numpy as np
 
 from fusionkit.api import body_point_range
 
+from .pulley import pulley_cables
+
 
 def elastic_cable_residual(pose: gtsam.Pose3, pulley: np.ndarray, offset: float, b: np.ndarray,
-                           stretch: float, z: float, H: list | None = None) -> np.ndarray:
+                           stretch: float, z: float, H: list | None = None, rho: float = 0.0,
+                           axis: np.ndarray | None = None) -> np.ndarray:
     """Elastic cable (thesis eq. 4.2, docs/models/cable_rigid.md#elastic-cable):
-    e = (1 - T/EA) l* + l0 - z, with stretch = T/EA (measured
-    tension over axial stiffness) and l* = ||R b + t - a||. Jacobians w.r.t. pose, pulley, offset."""
+    e = (1 - T/EA) l* + l0 - z, with stretch = T/EA (measured tension over axial stiffness) and
+    l* = ||R b + t - a||, or with a pulley radius `rho` > 0 the length over a pulley swivelling about
+    `axis` (pulley.py; its gradient in the attachment point is the free cable's direction n, in a it is -n).
+    Jacobians w.r.t. pose, pulley, offset."""
     alpha = 1.0 - stretch
-    J = [None, None] if H is not None else None
-    length = body_point_range(pose, b, pulley, J)
+    if rho > 0:
+        D = np.zeros((3, 6), order="F")
+        length, n = pulley_cables(pose.transformFrom(b, D), pulley, rho, axis)
+        length, J = float(length[0]), [(n[0] @ D).reshape(1, 6), -n[0].reshape(1, 3)]
+    else:
+        J = [None, None] if H is not None else None
+        length = body_point_range(pose, b, pulley, J)
     if H is not None:
         H[0] = alpha * J[0]
         H[1] = alpha * J[1]

@@ -17,7 +17,7 @@ from fusionkit.config.loader import load_config
 from fusionkit.graph.noise import gaussian
 from fusionkit.pipeline import estimate
 from fusionkit.testing.contract import FactorExample, check_factor_example
-from fusionkit_plugins.cable_rigid.factors import pulley_cable_factor
+from fusionkit_plugins.cable_rigid.factors import elastic_cable_factor
 from fusionkit_plugins.cable_rigid.pulley import pulley_cables
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -33,7 +33,7 @@ def test_a_cable_over_a_unit_pulley_to_a_point_below_its_centre_wraps_seven_sixt
     assert rigid[0] == pytest.approx(3.0)
 
 
-def test_the_cable_length_factor_over_a_pulley_has_exact_jacobians():
+def test_the_cable_length_factors_over_a_pulley_have_exact_jacobians():
     rng = np.random.default_rng(8)
     for _ in range(5):
         pose = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3))
@@ -45,8 +45,10 @@ def test_the_cable_length_factor_over_a_pulley_has_exact_jacobians():
         values.insert(0, pose)
         values.insert(1, a)
         values.insert(2, l0)
-        check_factor_example(FactorExample(pulley_cable_factor(0, 1, 2, b, rho, UP, z, gaussian([0.001])), values),
-                             "pulley", rng=rng)
+        for stretch in (0.0, 0.004):  # cable.length's factor, and cable.elastic_length's under tension
+            zs = (1 - stretch) * (z - l0) + l0
+            factor = elastic_cable_factor(0, 1, 2, b, stretch, zs, gaussian([0.001]), rho, UP)
+            check_factor_example(FactorExample(factor, values), "pulley", rng=rng)
 
 
 def pulley_errors(sim: Path, description: str) -> np.ndarray:
