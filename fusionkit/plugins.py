@@ -25,6 +25,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.data.static_segments",
     "fusionkit.robots.generic",
     "fusionkit.time_offset.guess",
+    "fusionkit.sweep",
 )
 OWN_DISTRIBUTION = "fusionkit"  # its entry-point plugins load first: a third-party name clash loses
 
