@@ -99,7 +99,8 @@ def execute(config: str, settings: list[dict], figures: list[str], backend: str,
         except ImportError:
             raise ConfigError("--backend ray needs Ray: pip install ray (or pip install 'fusionkit[scale]')") from None
         if not ray.is_initialized():
-            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False)
+            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False,
+                     logging_level="error")
         task = ray.remote(num_cpus=1)(run_one)
         return ray.get([task.remote(config, s, figures) for s in settings])
     if workers <= 1:
