@@ -9,13 +9,18 @@ motion-capture poses as pose.absolute; OptiOdom's published parameters) is evalu
 sessions with the reference implementation's measures: max e_d, the largest position error along any
 run's path, and the largest final position error and heading error, dead reckoning from each run's true
 start pose. A set calibrated on one session and evaluated on the other is held out. The published
-figures (reference_results.csv) are in-sample. Then the sensitivity of the least-squares fit to its
-segment length and of the graph calibration to its noise settings and state spacing.
+figures (reference_results.csv) are in-sample. Then each session leave-one-run-out: every run
+evaluated with the parameters calibrated on the session's other five (graph, least squares; UMBmark
+needs both directions of a square and is left out), against the in-sample figures. Then the sensitivity
+of the least-squares fit to its segment length and of the graph calibration to its noise settings and
+state spacing.
 
     python benchmarks/bench_wheels_real.py [--quick]
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 from research.external_data import external_data
 from research.wheels_optiodom import (CIRCULAR, GRAPH, NAME, SQUARE, WheelParameters, evaluate, graph_calibration,
@@ -75,6 +80,32 @@ def calibrations(sessions) -> tuple[str, dict]:
     return text, raw
 
 
+def leave_one_run_out(sessions) -> tuple[str, dict]:
+    """Per session: each run dead-reckoned with the parameters calibrated on the other runs; the measures
+    over those held-out runs (max e_d along any path, largest final error) beside the in-sample ones."""
+    rows, raw = [], {}
+    methods = {"fusionkit graph": lambda s: graph_calibration(s)[0], "least squares": least_squares}
+    for name, session in sessions.items():
+        for label, fit in methods.items():
+            along, final = [], []
+            for i, run in enumerate(session.runs):
+                others = replace(session, runs=[r for j, r in enumerate(session.runs) if j != i])
+                e = evaluate(replace(session, runs=[run]), fit(others))
+                along.append(e.max_along)
+                final.append(e.max_final)
+            inside = evaluate(session, fit(session))
+            raw[f"{label}, {SHORT[name]}"] = {"held_out_max_e_d": max(along), "held_out_max_final": max(final),
+                                               "in_sample_max_e_d": inside.max_along}
+            rows.append([f"{label}, {SHORT[name]}", f"{max(along):.4f}", f"{max(final):.4f}",
+                         f"{inside.max_along:.4f}", f"{inside.max_final:.4f}"])
+    for r in published():
+        rows.append([f"{r['method']} published, {r['experiment']}", "-", "-", f"{float(r['max_ed_m']):.4f}",
+                     f"{float(r['max_final_ed_m']):.4f}"])
+    text = table(["calibration, session", "held out: max e_d", "max final", "in-sample: max e_d", "max final"],
+                 rows, "Leave one run out: each run with the parameters of the session's other runs (m)")
+    return text, raw
+
+
 def segment_lengths(sessions) -> tuple[str, dict]:
     """The least-squares fit with each run cut into segments of 1, 5 and 20 s instead of whole runs."""
     rows, raw = [], {}
@@ -113,6 +144,7 @@ def run(quick: bool) -> dict:
         return {"text": f"(OptiOdom recordings not found at {DATA}: skipped)", "raw": {}}
     sessions = {name: load_session(name) for name in (CIRCULAR, SQUARE)}
     return run_parts({"calibrations": lambda: calibrations(sessions),
+                      "leave_one_run_out": lambda: leave_one_run_out(sessions),
                       "segments": lambda: segment_lengths(sessions),
                       "graph_settings": lambda: graph_settings(sessions, quick)})
 
