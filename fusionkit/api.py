@@ -35,7 +35,8 @@ API_VERSION = "1.4"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
 #      CLOCK_SCHEMA and clock_times (simulated clock drift)
-# 1.4: FactorType.review(ctx, spec, values) after solving; streams may repeat stamps (accepts_repeated_stamps)
+# 1.4: FactorType.review(ctx, spec, values) after solving; streams may repeat stamps (a component's
+#      accepts_repeated_stamps: the stream fields it takes sample by sample)
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -2,7 +2,7 @@
 a list, data folders -- on a local process pool or a Ray cluster, gathered into one table.
 
     config: configs/quickstart.yaml          # the base config (relative to this file)
-    seeds: [0, 1, 2]                         # optional: the seed of every `simulate` source
+    seeds: [0, 1, 2]                         # optional: added to every `simulate` source's own seed
     grid:                                    # optional: every combination of these overrides
       sources.0.params.pulley_error: [0.02, 0.05]
     runs:                                    # optional: listed override sets (each combined with the grid)
@@ -24,12 +24,12 @@ import argparse
 import csv
 import io
 import itertools
+import json
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from . import hookimpl
 from .components import Command
@@ -47,13 +47,13 @@ SCHEMA = {"type": "object",
           "required": ["config", "figures"], "additionalProperties": False}
 
 
-def run_settings(sweep: dict, simulate_sources: list[int]) -> list[dict[str, Any]]:
-    """Every run's overrides {key path: value}: the listed runs times the grid times the seeds (seeds set
-    each `simulate` source's `seed`)."""
+def run_settings(sweep: dict, simulate_sources: dict[int, int]) -> list[dict[str, Any]]:
+    """Every run's overrides {key path: value}: the listed runs times the grid times the seeds (a sweep seed
+    is added to each `simulate` source's own seed, {source index: its seed}, so sources stay distinct)."""
     grid = sweep.get("grid", {})
     points = [dict(zip(grid, values)) for values in itertools.product(*grid.values())] if grid else [{}]
     listed = sweep.get("runs", [{}])
-    seeds = [{f"sources.{i}.seed": seed for i in simulate_sources} for seed in sweep["seeds"]] \
+    seeds = [{f"sources.{i}.seed": base + seed for i, base in simulate_sources.items()} for seed in sweep["seeds"]] \
         if "seeds" in sweep else [{}]
     return [{**run, **point, **seed} for run in listed for point in points for seed in seeds]
 
@@ -71,6 +71,14 @@ def figure(document: dict, path: str) -> Any:
     return node
 
 
+def override_text(value: Any) -> str:
+    """A value as the text of a `--set` assignment that reads back as the same value: JSON (a subset of
+    YAML) quotes every string, so '1e-3' stays a string; floats that JSON cannot write as YAML's."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return ".nan" if np.isnan(value) else (".inf" if value > 0 else "-.inf")
+    return json.dumps(value)
+
+
 def run_one(config: str, overrides: dict[str, Any], figures: list[str]) -> dict[str, Any]:
     """One run (in a worker): {status, seconds, figures..., error}."""
     from .config.loader import load_config
@@ -78,8 +86,7 @@ def run_one(config: str, overrides: dict[str, Any], figures: list[str]) -> dict[
     from .report.outputs import report_document
     from .threads import one_blas_thread
     tic = time.perf_counter()
-    assignments = [f"{key}={yaml.safe_dump(value, default_flow_style=True).strip().removesuffix('...').strip()}"
-                   for key, value in overrides.items()]
+    assignments = [f"{key}={override_text(value)}" for key, value in overrides.items()]
     try:
         with one_blas_thread():
             result = estimate(load_config(config, assignments), keep_rejected=True)
@@ -87,6 +94,9 @@ def run_one(config: str, overrides: dict[str, Any], figures: list[str]) -> dict[
         out = {"status": document["status"], **{f: figure(document, f) for f in figures}}
     except FusionkitError as exc:
         out = {"status": "error", "error": str(exc).splitlines()[0], **{f: None for f in figures}}
+    except Exception as exc:  # a bug in one run must not take the sweep's other runs with it
+        out = {"status": "error", "error": f"internal error: {type(exc).__name__}: {exc}".splitlines()[0],
+               **{f: None for f in figures}}
     out["seconds"] = time.perf_counter() - tic
     return out
 
@@ -110,6 +120,13 @@ def execute(config: str, settings: list[dict], figures: list[str], backend: str,
         return list(pool.map(run_one, [config] * len(settings), settings, [figures] * len(settings)))
 
 
+def _cell(value: Any) -> Any:
+    """A figure in the CSV: numbers and text as they are, lists and mappings as JSON, absent as empty."""
+    if value is None:
+        return ""
+    return json.dumps(value) if isinstance(value, (list, dict)) else value
+
+
 def table_text(settings: list[dict], results: list[dict], figures: list[str]) -> str:
     keys = list(dict.fromkeys(k for s in settings for k in s))
     buffer = io.StringIO()
@@ -117,7 +134,7 @@ def table_text(settings: list[dict], results: list[dict], figures: list[str]) ->
     writer.writerow(["run", *keys, "status", "seconds", *figures, "error"])
     for i, (s, r) in enumerate(zip(settings, results)):
         writer.writerow([i, *[s.get(k, "") for k in keys], r["status"], f"{r['seconds']:.3f}",
-                         *["" if r[f] is None else r[f] for f in figures], r.get("error", "")])
+                         *[_cell(r[f]) for f in figures], r.get("error", "")])
     return buffer.getvalue()
 
 
@@ -127,13 +144,19 @@ def summary_text(settings: list[dict], results: list[dict], figures: list[str]) 
     for s, r in zip(settings, results):
         key = tuple((k, repr(v)) for k, v in s.items() if not k.endswith(".seed"))
         groups.setdefault(key, []).append(r)
-    lines = []
+    lines = [f"{f}: absent from every run's report.json (check the key path)" for f in figures
+             if all(r[f] is None for r in results if r["status"] != "error")]
+    lines += [f"{f}: not a number (in sweep.csv as JSON; no mean)" for f in figures
+              if any(isinstance(r[f], (list, dict, str)) for r in results)]
     for key, runs in groups.items():
         head = ", ".join(f"{k}={v}" for k, v in key) or "base config"
         failed = sum(r["status"] == "error" for r in runs)
-        lines.append(f"{head}: {len(runs)} run(s)" + (f", {failed} failed" if failed else ""))
+        rejected = sum(r["status"] == "rejected" for r in runs)
+        lines.append(f"{head}: {len(runs)} run(s)" + (f", {failed} failed" if failed else "")
+                     + (f", {rejected} refused by the chi-square gate (counted below)" if rejected else ""))
         for f in figures:
-            values = np.array([r[f] for r in runs if isinstance(r[f], (int, float))], float)
+            values = np.array([r[f] for r in runs if isinstance(r[f], (int, float)) and not isinstance(r[f], bool)],
+                              float)
             if len(values):
                 lines.append(f"  {f}: mean {values.mean():.6g}, std {values.std(ddof=1) if len(values) > 1 else 0.0:.3g}"
                              f" (n = {len(values)})")
@@ -157,7 +180,7 @@ def plots(settings: list[dict], results: list[dict], figures: list[str]) -> dict
             values = [[r[f] for s, r in zip(settings, results) if s[key] == x and isinstance(r[f], (int, float))]
                       for x in xs]
             ax.errorbar(xs, [np.mean(v) if v else np.nan for v in values],
-                        yerr=[np.std(v) if len(v) > 1 else 0.0 for v in values], marker="o", capsize=3)
+                        yerr=[np.std(v, ddof=1) if len(v) > 1 else 0.0 for v in values], marker="o", capsize=3)
             ax.set_xlabel(key)
             ax.set_ylabel(f)
         fig.tight_layout()
@@ -188,7 +211,7 @@ class Sweep(Command):
             raise doc.error(("config",), f"config not found: {config}")
         from .config.loader import load_config
         base = load_config(config)  # a base config that does not load is one line before any run
-        simulate_sources = [i for i, s in enumerate(base.sources) if s.type == "simulate"]
+        simulate_sources = {i: int(s["seed"]) for i, s in enumerate(base.sources) if s.type == "simulate"}
         if "seeds" in sweep and not simulate_sources:
             raise doc.error(("seeds",), "seeds set the seed of `simulate` sources; the config has none")
         if args.out:

@@ -1,9 +1,9 @@
 """Streams that stamp several samples alike (round-robin ranging logs) against what the config does with them.
 
 A robot's state clock (`states: {stream: ...}`, one state per sample) needs strictly increasing stamps, and
-so does every component that integrates or interpolates a stream's samples in time (odometry, IMU, wheel
-encoders, pose interpolation). Components that pair each sample with a state by its stamp (their schema has
-`tolerance`) take repeated stamps, and a component may say so itself (`accepts_repeated_stamps = True`).
+so does every component that integrates, interpolates or pairs up a stream's samples in time (odometry, IMU,
+wheel encoders, pose interpolation, relative factors). A component names the stream fields whose samples it
+takes one by one, by stamp, in `accepts_repeated_stamps` (a tuple of keys); every other field is refused.
 """
 
 from __future__ import annotations
@@ -12,9 +12,8 @@ from ..plugins import registry
 from .stream import Stream
 
 
-def accepts_repeated_stamps(component: type) -> bool:
-    said = getattr(component, "accepts_repeated_stamps", None)
-    return said if said is not None else "tolerance" in component.schema.get("properties", {})
+def accepts_repeated_stamps(component: type, field: str) -> bool:
+    return field in getattr(component, "accepts_repeated_stamps", ())
 
 
 def _repeats(stream: Stream) -> str:
@@ -40,10 +39,9 @@ def check_repeated_stamps(config, streams: dict[str, Stream]) -> None:
     for kind, specs in (("factor_types", config.factors), ("initializers", config.initializers)):
         for spec in specs:
             component = reg.get(kind, spec.type)
-            if accepts_repeated_stamps(component):
-                continue
             for key in component.stream_fields:
-                if key in spec.data and spec[key] in repeated:
-                    raise spec.error(key, f"{_repeats(streams[spec[key]])}; {spec.type} integrates or interpolates "
-                                     "its samples in time and needs strictly increasing stamps (entries that "
-                                     "pair samples with states by stamp take repeated ones)")
+                if key in spec.data and spec[key] in repeated and not accepts_repeated_stamps(component, key):
+                    raise spec.error(key, f"{_repeats(streams[spec[key]])}; {spec.type} integrates, interpolates or "
+                                     f"pairs up the samples of `{key}` in time and needs strictly increasing stamps "
+                                     "(the entries that take samples one by one accept repeated ones, e.g. "
+                                     "uwb.range)")

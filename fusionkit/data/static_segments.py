@@ -51,12 +51,11 @@ def averaged(stream: Stream, stretches: list[tuple[float, float]]) -> Stream:
         empty = next(i for i, r in enumerate(rows) if not r.any())
         a, b = stretches[empty]
         raise ValueError(f"stream {stream.name!r} has no sample in the static stretch {a:.3f} .. {b:.3f} s")
-    if stream.is_pose:
-        poses = stream.pose_array()
-        values = np.array([np.concatenate([poses[r, :3].mean(axis=0), Rotation.from_quat(poses[r, 3:]).mean().as_quat()])
-                           for r in rows])
-    else:
-        values = np.array([stream.values[r].mean(axis=0) for r in rows])
+    values = np.array([stream.values[r].mean(axis=0) for r in rows])
+    if stream.is_pose:  # the quaternion columns, wherever they are, by the rotations' mean
+        quat = [stream.columns.index(c) for c in POSE_COLUMNS[3:]]
+        unit = stream.pose_array()[:, 3:]
+        values[:, quat] = np.array([Rotation.from_quat(unit[r]).mean().as_quat() for r in rows])
     t = np.array([(a + b) / 2 for a, b in stretches])
     return Stream(stream.name, t, stream.columns, values, f"{stream.origin} (static stretches)")
 

@@ -44,7 +44,11 @@ def _parameters(result: RunResult) -> str:
     rows = []
     for robot, params in result.parameters.items():
         for name, est in params.items():
-            if est.series_t is not None:
+            if est.series_t is not None:  # time-varying: its last value (report.json has the series)
+                vt = est.family.vartype
+                last = format_value(vt.to_list(est.values[-1]), None if est.sigma is None else est.sigma[-1], vt.name)
+                rows.append([escape(f"{robot}/{name}"), escape(f"{last} (time-varying, last of {len(est.values)}; "
+                                                              "the series is in report.json)"), "", ""])
                 continue
             err = errors.get(robot, {}).get(name, {})
             for i, v in enumerate(est.values):
@@ -59,7 +63,7 @@ def _parameters(result: RunResult) -> str:
                 rows.append([escape(label), escape(value), truth, zs])
     if not rows:
         return "<p>No static parameters estimated.</p>"
-    return _table(["parameter", "estimate &plusmn; 1-sigma", "error vs truth", "error / sigma"], rows)
+    return _table(["parameter", "estimate ± 1-sigma", "error vs truth", "error / sigma"], rows)
 
 
 def _trajectories(result: RunResult) -> str:

@@ -44,6 +44,7 @@ class CableLength(FactorType):
                "factor; over a swivelling pulley of the description's pulley_radius, its length from a_i")
     robot_fields = ("robot",)
     stream_fields = ("stream",)
+    accepts_repeated_stamps = ("stream",)  # each sample its own factor, paired by stamp
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"}, "sigma": SIGMA,
                              "columns": {"type": "array", "items": {"type": "string"}},

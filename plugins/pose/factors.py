@@ -79,6 +79,7 @@ class AbsolutePose(FactorType):
     summary = "absolute pose measurements of a robot (motion capture, GNSS+heading): native prior"
     robot_fields = ("robot",)
     stream_fields = ("stream",)
+    accepts_repeated_stamps = ("stream",)  # each sample its own factor, paired by stamp
     schema = {"type": "object",
               "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
                              "sensor": {"type": "string"}, "sigma": SIGMA, "tolerance": TOLERANCE_SCHEMA},

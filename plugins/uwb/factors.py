@@ -101,6 +101,7 @@ class UwbRange(FactorType):
                "time-varying per anchor; native GTSAM range+bias factor without alpha)")
     robot_fields = ("robot", "anchors")
     stream_fields = ("stream",)
+    accepts_repeated_stamps = ("stream",)  # each sample its own factor, paired by stamp
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "anchors": NAME, "anchor_parameter": ANCHOR_PARAMETER,
                              "tag": NAME, "bias": NAME, "scale": NAME, "sigma": SIGMA,
@@ -230,6 +231,7 @@ class UwbTagRange(FactorType):
     summary = "UWB range between tags on two robots: z = ||X_a b_a - X_b b_b|| (multi-robot)"
     robot_fields = ("robot", "other")
     stream_fields = ("stream",)
+    accepts_repeated_stamps = ("stream",)  # each sample its own factor, paired by stamp
     schema = {"type": "object",
               "properties": {"robot": NAME, "other": NAME, "stream": NAME, "tag": NAME, "other_tag": NAME,
                              "column": RANGE_COLUMN, "sigma": SIGMA, "tolerance": TOLERANCE_SCHEMA},

@@ -117,7 +117,7 @@ def round_window(t: np.ndarray, anchor: np.ndarray, need: int) -> float:
 
 class Multilateration(Initializer):
     name = "uwb.multilateration"
-    accepts_repeated_stamps = True  # ranges are grouped by time window (round-robin logs stamp several alike)
+    accepts_repeated_stamps = ("stream",)  # ranges are grouped by time window (round-robin logs stamp several alike)
     summary = ("first poses by per-epoch multilateration to the known anchors, unknown anchors (and their "
                "constant bias) by the closed-form range-origin fit shared with the cable plugins; with no anchor "
                "surveyed, anchors placed from the ranges alone, in the anchor frame")

@@ -31,6 +31,18 @@ def test_poses_average_to_the_mean_position_and_the_mean_rotation():
     assert Rotation.from_quat(out.values[0, 3:]).as_rotvec() == pytest.approx([0.1, 0.0, 0.0], abs=1e-4)
 
 
+def test_pose_columns_in_another_order_and_extra_columns_average_in_place():
+    t = np.arange(4) * 0.5
+    quats = Rotation.from_rotvec([[0.0, 0.0, a] for a in (0.1, 0.2, 0.3, 0.2)]).as_quat()
+    columns = ("qw", "qx", "qy", "qz", "x", "y", "z", "speed")
+    values = np.column_stack([quats[:, 3], quats[:, :3], np.arange(4), np.zeros((4, 2)), [1, 2, 3, 2]])
+    out = averaged(Stream("p", t, columns, values), [(0.0, 1.5)])
+    row = dict(zip(out.columns, out.values[0]))
+    assert row["x"] == pytest.approx(1.5) and row["speed"] == pytest.approx(2.0)
+    rot = Rotation.from_quat([row["qx"], row["qy"], row["qz"], row["qw"]]).as_rotvec()
+    assert rot == pytest.approx([0.0, 0.0, 0.2], abs=1e-3)
+
+
 def test_a_recording_without_a_dwell_is_one_located_line(workspace, capsys):
     t = np.arange(50) * 0.1
     source = workspace.columns("lengths", t, l0=1.0 + t)  # always moving

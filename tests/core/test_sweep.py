@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from fusionkit.cli.main import main
-from fusionkit.sweep import figure, run_settings
+from fusionkit.sweep import figure, override_text, run_settings
 
 REPO = Path(__file__).resolve().parents[2]
 FIGURES = ["evaluation.parameters.cam.vo_scale.mean_abs_error", "solver.chi2_per_dof", "problem.states.cam"]
@@ -21,11 +21,19 @@ FIGURES = ["evaluation.parameters.cam.vo_scale.mean_abs_error", "solver.chi2_per
 
 def test_settings_are_the_listed_runs_times_the_grid_times_the_seeds():
     sweep = {"runs": [{"a": 1}, {"a": 2}], "grid": {"b": [10, 20]}, "seeds": [0, 1]}
-    settings = run_settings(sweep, [0, 2])
+    settings = run_settings(sweep, {0: 7, 2: 0})
     assert len(settings) == 8
-    assert settings[0] == {"a": 1, "b": 10, "sources.0.seed": 0, "sources.2.seed": 0}
-    assert settings[-1] == {"a": 2, "b": 20, "sources.0.seed": 1, "sources.2.seed": 1}
-    assert run_settings({}, []) == [{}]
+    assert settings[0] == {"a": 1, "b": 10, "sources.0.seed": 7, "sources.2.seed": 0}  # added to each source's
+    assert settings[-1] == {"a": 2, "b": 20, "sources.0.seed": 8, "sources.2.seed": 1}
+    assert run_settings({}, {}) == [{}]
+
+
+def test_override_values_read_back_as_themselves():
+    from fusionkit.config.overrides import apply_override
+    for value in ("1e-3", "with spaces", "yes", 1e-3, 2, True, None, [1, [2.5, "x"]], {"a": 1}, float("inf")):
+        data: dict = {}
+        apply_override(data, f"k={override_text(value)}")
+        assert data["k"] == value, (value, data["k"])
 
 
 def test_figures_are_key_paths_into_the_report():
@@ -89,3 +97,16 @@ def test_the_ray_backend_without_ray_says_how_to_get_it(tmp_path, capsys):
         pytest.skip("Ray is installed here: the message is for machines without it")
     assert main(["sweep", str(sweep_file(tmp_path)), "--backend", "ray"]) == 2
     assert "pip install ray" in capsys.readouterr().err
+
+
+def test_a_run_that_raises_an_internal_error_is_reported_not_fatal(tmp_path, monkeypatch):
+    import fusionkit.pipeline
+    from fusionkit.sweep import run_one
+
+    def broken(*args, **kwargs):
+        raise ValueError("a bug in one run")
+    monkeypatch.setattr(fusionkit.pipeline, "estimate", broken)
+    sweep_file(tmp_path)
+    out = run_one(str(tmp_path / "base.yaml"), {}, FIGURES)
+    assert out["status"] == "error" and out["error"] == "internal error: ValueError: a bug in one run"
+    assert all(out[f] is None for f in FIGURES)

@@ -68,4 +68,4 @@ def test_an_entry_that_integrates_a_stream_with_repeated_stamps_is_refused_at_it
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
     assert "factors[1].stream" in err[0] and "stamps 1 sample(s) like the one before (first at t = 0.900000 s)" in err[0]
-    assert "odometry.diff_drive integrates or interpolates its samples in time" in err[0], err
+    assert "odometry.diff_drive integrates, interpolates or pairs up the samples of `stream`" in err[0], err
