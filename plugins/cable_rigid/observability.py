@@ -144,35 +144,46 @@ def solve_lifted(sys: LiftedSystem) -> dict:
     return {"pulley": theta[:3] / s + s * sys.q_mean + sys.shift, "offset": l0, "scale": s}
 
 
-def fit_rms(sys: LiftedSystem, iterations: int = 10) -> float:
-    """Rms (m) of the length residuals alpha |q - a| + l0 - z at the least-squares pulley and offset (the
-    lifted solution refined by Gauss-Newton on the lengths themselves); nan with an unknown scale."""
+def fit_rms(sys: LiftedSystem, iterations: int = 30) -> float:
+    """Rms (m) of the length residuals alpha |q - a| + l0 - z at the least-squares pulley and offset: the
+    lifted solution refined by Gauss-Newton on the lengths themselves, a step halved while it raises the
+    cost. nan with an unknown scale, or when the refinement has not converged (no verdict rests on it)."""
     if sys.unknown_scale:
         return float("nan")
     first = solve_lifted(sys)
-    a, l0 = np.asarray(first["pulley"], float), first["offset"]
+    x = np.r_[np.asarray(first["pulley"], float), first["offset"]]
+
+    def residual(x):
+        return sys.alpha * np.linalg.norm(sys.q - x[:3], axis=1) + x[3] - sys.z
+    e = residual(x)
     for _ in range(iterations):
-        d = sys.q - a
+        d = sys.q - x[:3]
         dist = np.linalg.norm(d, axis=1)
-        e = sys.alpha * dist + l0 - sys.z
         J = np.column_stack([-(sys.alpha / np.maximum(dist, 1e-9))[:, None] * d, np.ones(len(e))])
         step = np.linalg.lstsq(J, -e, rcond=None)[0]
-        a, l0 = a + step[:3], l0 + step[3]
-    e = sys.alpha * np.linalg.norm(sys.q - a, axis=1) + l0 - sys.z
-    return float(np.sqrt(np.mean(e ** 2)))
+        while True:
+            trial = residual(x + step)
+            if trial @ trial <= e @ e or np.abs(step).max() < 1e-12:
+                break
+            step = step / 2
+        x, e = x + step, trial
+        if np.abs(step).max() < 1e-9:
+            return float(np.sqrt(np.mean(e ** 2)))
+    return float("nan")
 
 
 def _rank(s: np.ndarray, tol: float) -> int:
     return int(np.sum(s > tol))
 
 
-def analyze(sys: LiftedSystem, sigma: float, k: float = K_NOISE) -> dict:
+def analyze(sys: LiftedSystem, sigma: float, k: float = K_NOISE, fit: bool = True) -> dict:
     """Rank, condition, weak directions of one cable's system (sigma: encoder noise, m). When the motion
     determines the pulley and offset at that noise but the lengths fit it far worse (rms above MISMATCH
     sigmas: sag, swing, a pulley radius or a time offset the model lacks), it is judged again against that
-    residual level (`judged_at_m`)."""
+    residual level (`judged_at_m`). `fit`: False for a robot the fit's model does not describe (pulleys
+    with a radius)."""
     r = _analyze(sys, sigma, k)
-    residual = fit_rms(sys) if r["observable"] else float("nan")
+    residual = fit_rms(sys) if r["observable"] and fit else float("nan")
     if residual > MISMATCH * sigma:  # (nan compares False)
         r = _analyze(sys, residual, k)
     return {**r, "fit_rms_m": residual, "judged_at_m": residual if residual > MISMATCH * sigma else sigma}
@@ -296,7 +307,7 @@ def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
             continue
         sys = lifted_system(t, stream.column(columns[i])[rows], R @ cdpr.attachments[i],
                             None if alpha_of is None else alpha_of(i, ks), unknown)
-        r = analyze(sys, float(spec["sigma"]))
+        r = analyze(sys, float(spec["sigma"]), fit=cdpr.pulley_radius == 0)
         cables.append({"cable": int(i), "rank": r["rank"], "unknowns": r["unknowns"],
                        "condition": r["condition"], "extent_m": [float(e) for e in r["extent_m"]],
                        "weakest_direction": [float(c) for c in r["weakest_direction"]],

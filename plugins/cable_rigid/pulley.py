@@ -31,7 +31,8 @@ def pulley_cables(P: np.ndarray, A: np.ndarray, rho: float, u: np.ndarray) -> tu
     y = d @ u
     radial = d - y[:, None] * u
     r = np.linalg.norm(radial, axis=1)
-    e = radial / np.maximum(r, 1e-12)[:, None]
+    side = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])  # any horizontal direction
+    e = np.where((r > 1e-9)[:, None], radial / np.maximum(r, 1e-12)[:, None], side / np.linalg.norm(side))
     x = r - rho
     D = np.hypot(x, y)
     if np.any(D <= rho):

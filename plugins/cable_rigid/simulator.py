@@ -109,12 +109,23 @@ def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.n
     return np.linalg.norm(d, axis=2), arms
 
 
+def cable_directions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """(u (N, n, 3), arms R b_i (N, n, 3)): the unit vector along each cable from its attachment towards
+    the pulley -- to the exit point, or with a pulley radius along the free cable (pulley.py's -n)."""
+    arms = np.einsum("kij,cj->kci", rot, geo.attachments)
+    points = pos[:, None, :] + arms
+    if geo.pulley_radius > 0:
+        u = np.stack([-pulley_cables(points[:, i], np.broadcast_to(geo.pulleys[i], points[:, i].shape),
+                                     geo.pulley_radius, SWIVEL_AXIS)[1] for i in range(geo.n)], axis=1)
+        return u, arms
+    d = geo.pulleys[None] - points
+    return d / np.linalg.norm(d, axis=2, keepdims=True), arms
+
+
 def wrench_matrix(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, 6, n): column i is the wrench [u_i; R b_i x u_i] (about the end-effector origin, base
-    frame) of a unit tension in cable i, u_i the unit vector from attachment to pulley."""
-    arms = np.einsum("kij,cj->kci", rot, geo.attachments)
-    d = geo.pulleys[None] - (pos[:, None, :] + arms)
-    u = d / np.linalg.norm(d, axis=2, keepdims=True)
+    frame) of a unit tension in cable i, u_i the unit vector from attachment towards the pulley."""
+    u, arms = cable_directions(pos, rot, geo)
     return np.concatenate([u, np.cross(arms, u)], axis=2).transpose(0, 2, 1)
 
 
@@ -257,8 +268,7 @@ def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: 
 def length_jacobian(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, n, 6) d l*_i / d [w, v]: a spatial twist about the end-effector origin (rotation w, rad;
     translation v, m; base frame) moves attachment i by v + w x R b_i."""
-    lengths, arms = cable_vectors(pos, rot, geo)
-    u = (geo.pulleys[None] - pos[:, None, :] - arms) / lengths[..., None]  # attachment -> pulley
+    u, arms = cable_directions(pos, rot, geo)  # attachment -> pulley
     return -np.concatenate([np.cross(arms, u), u], axis=2)
 
 

@@ -70,10 +70,13 @@ class DiffDriveOdometry(FactorType):
 def increment_segments(t: np.ndarray, distance: np.ndarray, turn: np.ndarray, t0: float, t1: float):
     """(d, theta, dt) of the pieces of [t0, t1] between the stream's stamps: row i is the motion over
     (t_{i-1}, t_i] (the first row's is not used), spread evenly over that span, so a row that straddles a
-    state time is split in proportion."""
+    state time is split in proportion; only the part of [t0, t1] inside the stream's span (none: empty)."""
     D = np.concatenate([[0.0], np.cumsum(distance[1:])])
     T = np.concatenate([[0.0], np.cumsum(turn[1:])])
-    cuts = np.concatenate([[t0], t[(t > t0) & (t < t1)], [t1]])
+    lo, hi = max(t0, float(t[0])), min(t1, float(t[-1]))  # nothing is known outside the stream's span
+    if hi <= lo:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    cuts = np.concatenate([[lo], t[(t > lo) & (t < hi)], [hi]])
     return np.diff(np.interp(cuts, t, D)), np.diff(np.interp(cuts, t, T)), np.diff(cuts)
 
 
@@ -129,10 +132,14 @@ class IncrementOdometry(FactorType):
         stream = ctx.stream(spec["stream"])
         distance, turn = stream.column(spec["distance"]), stream.column(spec["turn"])
         sig = pose_sigmas(spec["sigma"], planar=True)
+        outside = 0
         for k in range(1, len(states)):
             t0, t1 = float(states.t[k - 1]), float(states.t[k])
             d, theta, dt = increment_segments(stream.t, distance, turn, t0, t1)
-            noise = ctx.noise(sig * np.sqrt(max(t1 - t0, 1e-9)), spec)
+            if not len(d):
+                outside += 1
+                continue
+            noise = ctx.noise(sig * np.sqrt(max(dt.sum(), 1e-9)), spec)
             keys = [ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k)]
             if "bias" in spec.data:
                 factor = gtsam.CustomFactor(noise, keys + [ctx.parameter(robot, spec["bias"], None, k - 1)],
@@ -140,6 +147,9 @@ class IncrementOdometry(FactorType):
             else:
                 factor = gtsam.BetweenFactorPose2(*keys, composed_arcs(d, theta, 0.0, dt)[0], noise)
             ctx.add(factor, spec, t1)
+        if outside:
+            ctx.notes.append(f"{spec.label}: {outside} state interval(s) lie outside stream {spec['stream']!r} and "
+                             "have no increment factor")
 
     @classmethod
     def example(cls, rng):
