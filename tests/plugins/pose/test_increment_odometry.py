@@ -73,3 +73,10 @@ def test_misnamed_columns_and_bias_are_one_located_line(workspace, capsys, key, 
     assert main(["validate", str(workspace.config(config))]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and where in err[0] and needle in err[0], err
+
+
+def test_only_the_part_of_a_state_interval_the_log_covers_is_used():
+    t = np.array([1.0, 1.1, 1.2])
+    d, theta, dt = increment_segments(t, np.array([0.0, 0.1, 0.1]), np.zeros(3), 0.9, 1.15)
+    np.testing.assert_allclose(dt, [0.1, 0.05]) and np.testing.assert_allclose(d, [0.1, 0.05])
+    assert all(len(x) == 0 for x in increment_segments(t, np.zeros(3), np.zeros(3), 0.5, 0.9))
