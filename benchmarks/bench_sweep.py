@@ -28,7 +28,7 @@ WORKERS = 2
 
 
 def backends(runs: int) -> tuple[str, dict]:
-    settings = run_settings({"seeds": list(range(runs))}, [0])
+    settings = run_settings({"seeds": list(range(runs))}, {0: 0})  # source 0 at seeds 0 .. runs - 1
     rows, raw, reference = [], {}, None
     names = ("serial loop", "local pool") + (("ray",) if importlib.util.find_spec("ray") else ())
     for name in names:

@@ -23,7 +23,6 @@ observable in the first seconds).
 
 from __future__ import annotations
 
-import sys
 import time
 
 import gtsam
@@ -32,7 +31,7 @@ import numpy as np
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 
-from _timing import table
+from _timing import run_parts, table
 
 CAMERA = {"type": "pose.absolute", "robot": "robot", "stream": "camera",
           "sigma": {"rotation": 0.02, "translation": 0.0028}}
@@ -140,16 +139,12 @@ def fixed_lag(quick: bool) -> tuple[str, dict]:
 
 
 def run(quick: bool) -> dict:
-    out = {}
-    for part in (batch, fixed_lag):
-        text, raw = part(quick)
-        print(text + "\n", flush=True)
-        out[part.__name__] = raw
-    return out
+    return run_parts({"batch": lambda: batch(quick), "fixed_lag": lambda: fixed_lag(quick)})
 
 
 def summary(results: dict) -> list[str]:
     lines = []
+    results = results.get("raw", {})
     for name, d in results.get("batch", {}).items():
         lines.append(f"wheels batch {name}: {d['states']} states, {d['total'] - d['read']:.2f} s end to end "
                      f"(without the simulation), {(d['total'] - d['read']) / (d['native']['build'] + d['native']['solve']):.1f}x "
@@ -160,4 +155,5 @@ def summary(results: dict) -> list[str]:
 
 
 if __name__ == "__main__":
-    run("--quick" in sys.argv)
+    from _timing import section_main
+    section_main(__doc__, run, summary)

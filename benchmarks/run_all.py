@@ -36,7 +36,7 @@ sys.path.insert(0, str(HERE))
 import numpy as np  # noqa: E402
 
 SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real",
-            "wheels_speed", "wheels_sim", "time_offset", "epuck", "busy_core")
+            "wheels_speed", "wheels_sim", "time_offset", "epuck", "sweep", "busy_core")
 
 
 def _git(*args: str) -> str:
