@@ -96,36 +96,31 @@ def onto_best_fit_plane(points: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------- kinematics
-def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
-    """Lengths l*_i (N, n) of thesis eq. 4.1 (over swivelling pulleys of geo.pulley_radius, turning about
-    the vertical, when it is set) and the lever arms R b_i (N, n, 3) of each attachment."""
-    arms = np.einsum("kij,cj->kci", rot, geo.attachments)
-    if geo.pulley_radius > 0:
-        points = pos[:, None, :] + arms
-        lengths = np.column_stack([pulley_cables(points[:, i], np.broadcast_to(geo.pulleys[i], points[:, i].shape),
-                                                 geo.pulley_radius, SWIVEL_AXIS)[0] for i in range(geo.n)])
-        return lengths, arms
-    d = geo.pulleys[None] - (pos[:, None, :] + arms)
-    return np.linalg.norm(d, axis=2), arms
-
-
-def cable_directions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
-    """(u (N, n, 3), arms R b_i (N, n, 3)): the unit vector along each cable from its attachment towards
-    the pulley -- to the exit point, or with a pulley radius along the free cable (pulley.py's -n)."""
+def cables(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lengths l*_i (N, n) of thesis eq. 4.1, unit vectors u (N, n, 3) along each cable from its attachment
+    towards the pulley, lever arms R b_i (N, n, 3)): to the exit point, or with geo.pulley_radius over a
+    pulley swivelling about the vertical, along the free cable (pulley.py)."""
     arms = np.einsum("kij,cj->kci", rot, geo.attachments)
     points = pos[:, None, :] + arms
     if geo.pulley_radius > 0:
-        u = np.stack([-pulley_cables(points[:, i], np.broadcast_to(geo.pulleys[i], points[:, i].shape),
-                                     geo.pulley_radius, SWIVEL_AXIS)[1] for i in range(geo.n)], axis=1)
-        return u, arms
+        over = [pulley_cables(points[:, i], np.broadcast_to(geo.pulleys[i], points[:, i].shape), geo.pulley_radius,
+                              SWIVEL_AXIS) for i in range(geo.n)]
+        return np.column_stack([length for length, _ in over]), -np.stack([n for _, n in over], axis=1), arms
     d = geo.pulleys[None] - points
-    return d / np.linalg.norm(d, axis=2, keepdims=True), arms
+    lengths = np.linalg.norm(d, axis=2)
+    return lengths, d / lengths[..., None], arms
+
+
+def cable_vectors(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> tuple[np.ndarray, np.ndarray]:
+    """(lengths l*_i (N, n), lever arms R b_i (N, n, 3)): `cables` without the directions."""
+    lengths, _, arms = cables(pos, rot, geo)
+    return lengths, arms
 
 
 def wrench_matrix(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, 6, n): column i is the wrench [u_i; R b_i x u_i] (about the end-effector origin, base
     frame) of a unit tension in cable i, u_i the unit vector from attachment towards the pulley."""
-    u, arms = cable_directions(pos, rot, geo)
+    _, u, arms = cables(pos, rot, geo)
     return np.concatenate([u, np.cross(arms, u)], axis=2).transpose(0, 2, 1)
 
 
@@ -268,7 +263,7 @@ def pendulum_swing(t: np.ndarray, pos: np.ndarray, amplitude: float, frequency: 
 def length_jacobian(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, n, 6) d l*_i / d [w, v]: a spatial twist about the end-effector origin (rotation w, rad;
     translation v, m; base frame) moves attachment i by v + w x R b_i."""
-    u, arms = cable_directions(pos, rot, geo)  # attachment -> pulley
+    _, u, arms = cables(pos, rot, geo)  # attachment -> pulley
     return -np.concatenate([np.cross(arms, u), u], axis=2)
 
 
