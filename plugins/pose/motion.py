@@ -145,7 +145,7 @@ class IncrementOdometry(FactorType):
                 factor = gtsam.CustomFactor(noise, keys + [ctx.parameter(robot, spec["bias"], None, k - 1)],
                                             partial(_increments_error, d, theta, dt))
             else:
-                factor = gtsam.BetweenFactorPose2(*keys, composed_arcs(d, theta, 0.0, dt)[0], noise)
+                factor = gtsam.BetweenFactorPose2(*keys, unicycle_increment(d, theta, np.ones(len(d))), noise)
             ctx.add(factor, spec, t1)
         if outside:
             ctx.notes.append(f"{spec.label}: {outside} state interval(s) lie outside stream {spec['stream']!r} and "
