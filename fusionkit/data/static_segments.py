@@ -18,10 +18,10 @@ from scipy.spatial.transform import Rotation
 
 from .. import hookimpl
 from ..components import Source, SourceOutput, Spec
+from .builtin_sources import NAME, resolve
 from .files import read_csv_header, read_csv_stream, read_tum
 from .stream import POSE_COLUMNS, Stream
 
-NAME = {"type": "string", "pattern": "^[A-Za-z_][A-Za-z0-9_./-]*$"}
 FILE = {"type": "object", "properties": {"name": NAME, "path": {"type": "string"}},
         "required": ["name", "path"], "additionalProperties": False}
 
@@ -78,7 +78,7 @@ class StaticSegments(Source):
         entries = [(("segments_from",), spec["segments_from"])] + [(("also", i), e) for i, e in enumerate(spec["also"])]
         out = []
         for where, entry in entries:
-            path = Path(entry["path"]) if Path(entry["path"]).is_absolute() else base_dir / entry["path"]
+            path = resolve(base_dir, entry["path"])
             if not path.is_file():
                 raise spec.error(where + ("path",), f"file not found: {path}")
             out.append((where, entry, path))

@@ -203,33 +203,27 @@ def check_epuck(out: Path) -> None:
         assert low < value < high, (name, alphas[name])
 
 
+def check_scaled_vo(out: Path) -> None:
+    truth = yaml.safe_load((out / "sim/truth/calibration.yaml").read_text())
+    true_scale = truth["robots"]["cam"]["vo_scale"]["value"]
+    for folder in ("sim_result", "sim_isam2", "sim_again"):
+        report = json.loads((out / folder / "report.json").read_text())
+        est = report["parameters"]["cam"]["vo_scale"]
+        assert abs(est["value"] - true_scale) < 3 * est["sigma"] + 1e-3, (folder, est, true_scale)
+        assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.05
+    isam = json.loads((out / "sim_isam2/report.json").read_text())
+    assert isam["solver"]["step_latency_ms"]["steps"] >= 600
+
+
+CHECKS = {"scaled_vo": check_scaled_vo, "cable_robot_rigid": check_cable_robot_rigid,
+          "cable_robot_sag": check_cable_robot_sag, "uwb": check_uwb, "multirobot": check_multirobot,
+          "arash": check_arash, "serial_arm": check_serial_arm, "wheeled_robot": check_wheeled_robot,
+          "epuck": check_epuck}
+
+
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs_as_typed_and_its_estimates_meet_their_error_bounds(md: Path, tmp_path: Path) -> None:
     assert BLOCK.findall(md.read_text()), f"{md.name} has no bash blocks to run"
     run_tutorial(md, tmp_path)
-    if md.stem == "scaled_vo":
-        truth = yaml.safe_load((tmp_path / "out/sim/truth/calibration.yaml").read_text())
-        true_scale = truth["robots"]["cam"]["vo_scale"]["value"]
-        for folder in ("sim_result", "sim_isam2", "sim_again"):
-            report = json.loads((tmp_path / "out" / folder / "report.json").read_text())
-            est = report["parameters"]["cam"]["vo_scale"]
-            assert abs(est["value"] - true_scale) < 3 * est["sigma"] + 1e-3, (folder, est, true_scale)
-            assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.05
-        isam = json.loads((tmp_path / "out/sim_isam2/report.json").read_text())
-        assert isam["solver"]["step_latency_ms"]["steps"] >= 600
-    if md.stem == "cable_robot_rigid":
-        check_cable_robot_rigid(tmp_path / "out")
-    if md.stem == "cable_robot_sag":
-        check_cable_robot_sag(tmp_path / "out")
-    if md.stem == "uwb":
-        check_uwb(tmp_path / "out")
-    if md.stem == "multirobot":
-        check_multirobot(tmp_path / "out")
-    if md.stem == "arash":
-        check_arash(tmp_path / "out")
-    if md.stem == "serial_arm":
-        check_serial_arm(tmp_path / "out")
-    if md.stem == "wheeled_robot":
-        check_wheeled_robot(tmp_path / "out")
-    if md.stem == "epuck":
-        check_epuck(tmp_path / "out")
+    if md.stem in CHECKS:
+        CHECKS[md.stem](tmp_path / "out")
