@@ -9,7 +9,7 @@ version adds names, a major one changes or removes them. docs/plugin_guide.md do
 
 from __future__ import annotations
 
-from . import hookimpl
+from . import hookimpl, lie
 from .components import (CheckScope, Command, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
                          Spec)
 from .data.files import read_csv_stream
@@ -18,6 +18,7 @@ from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_f
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
 from .geometry import body_point_range, fit_range_origin, range_factor
 from .graph.noise import POSE_SIGMA_SCHEMA, gaussian, pose_sigma_schema, pose_sigmas
+from .graph.vectorized import VectorizedResidual, instance_factor as vectorized_factor
 from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
                               vector_type)
 from .models.integration import held_intervals
@@ -30,13 +31,15 @@ from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, no
                                 smooth_trajectory)
 from .testing import FactorExample
 
-API_VERSION = "1.4"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.5"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
 #      CLOCK_SCHEMA and clock_times (simulated clock drift)
 # 1.4: FactorType.review(ctx, spec, values) after solving; streams may repeat stamps (a component's
 #      accepts_repeated_stamps: the stream fields it takes sample by sample)
+# 1.5: vectorized factors: VectorizedResidual, ctx.add_vectorized, vectorized_factor (one instance, for
+#      examples), lie (SE(3) for N poses at once)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -61,4 +64,6 @@ __all__ = [
     # simulator building blocks and the factor contract
     "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",
     "CLOCK_SCHEMA", "clock_times",
+    # factors evaluated many at a time (ctx.add_vectorized) and the SE(3) arrays they are written with
+    "VectorizedResidual", "vectorized_factor", "lie",
 ]

@@ -247,14 +247,14 @@ def joint_alignment(trajectories, truth: Truth, align: str):
 def residuals_by_entry(problem: Problem, final: gtsam.Values) -> dict[str, dict]:
     """RMS of the unwhitened residual (the factor's own units) of each entry, at the initial
     values and at the solution: e.g. the cable-length residual before and after refinement."""
-    groups: dict[str, list] = {}
-    for r in problem.records:
-        groups.setdefault(r.label, []).append(r.factor)
+    rows: dict[str, list[int]] = {}
+    for i, r in enumerate(problem.records):
+        rows.setdefault(r.label, []).append(i)
+    residuals = [problem.evaluator().record_residuals(v) for v in (problem.initial, final)]
     out = {}
-    for label, factors in groups.items():
-        rms = [float(np.sqrt(np.mean(np.concatenate([f.unwhitenedError(v) for f in factors]) ** 2)))
-               for v in (problem.initial, final)]
-        out[label] = {"factors": len(factors), "initial_rms": rms[0], "final_rms": rms[1]}
+    for label, indices in rows.items():
+        rms = [float(np.sqrt(np.mean(np.concatenate([at[i] for i in indices]) ** 2))) for at in residuals]
+        out[label] = {"factors": len(indices), "initial_rms": rms[0], "final_rms": rms[1]}
     return out
 
 

@@ -20,6 +20,8 @@ from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, with_kernel
 from .variables import VarType, vartype_named
+from .evaluator import GraphEvaluator
+from .vectorized import VectorizedGroup, VectorizedResidual, instance_factor
 
 STATIC_TIME = float("-inf")
 FIXED_SIGMA = 1e-9  # prior sigma (per tangent axis, SI units) that holds a `fixed: true` parameter
@@ -54,11 +56,15 @@ class StateSet:
 
 @dataclass(slots=True)
 class FactorRecord:
-    """A factor with the entry that made it and the time at which an incremental solver adds it."""
+    """A factor with the entry that made it and the time at which an incremental solver adds it;
+    a vectorized factor also names its group and its row there (fusionkit's solvers linearize the
+    group in one call)."""
 
     factor: gtsam.NonlinearFactor
     label: str
     time: float
+    group: VectorizedGroup | None = None
+    row: int = -1
 
 
 @dataclass
@@ -78,6 +84,7 @@ class Problem:
     measurement_states: MeasurementStates | None = None  # entries with a time offset (time_offset/)
     context: "BuildContext | None" = None  # what built it: factor types' review() after solving reads it
     _graph: gtsam.NonlinearFactorGraph | None = None
+    _evaluator: GraphEvaluator | None = None
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
         """All factors in one graph (built once; the records do not change after building)."""
@@ -86,6 +93,13 @@ class Problem:
             for r in self.records:
                 self._graph.add(r.factor)
         return self._graph
+
+    def evaluator(self) -> GraphEvaluator:
+        """The cost and linearization of all factors for fusionkit's solvers (graph/evaluator.py):
+        vectorized groups in one call each."""
+        if self._evaluator is None:
+            self._evaluator = GraphEvaluator(self.records)
+        return self._evaluator
 
 
 class BuildContext:
@@ -284,6 +298,37 @@ class BuildContext:
             raise PluginError(f"{spec.label}: factor type {spec.type} was given `robust:` but built a factor "
                               "without the kernel (plugin bug: build its noise with ctx.noise(sigmas, spec))")
         self.records.append(FactorRecord(factor, spec.label, time))
+
+    def add_vectorized(self, residual: VectorizedResidual, keys, data: dict[str, Any], sigmas, spec: Spec,
+                       times=STATIC_TIME) -> None:
+        """Add N factors of one vectorized residual (fusionkit.graph.vectorized): `keys` (N, k) variable
+        keys per instance in the residual's variable order, `data` {name: (N, ...)} measurements, `sigmas`
+        (dim,) shared or (N, dim) per instance (residual units; the entry's `robust:` kernel is applied),
+        `times` () or (N,) as in `add`."""
+        keys = np.asarray(keys, dtype=np.int64)
+        n = len(keys)
+        if keys.shape != (n, len(residual.variables)):
+            raise PluginError(f"{spec.label}: {residual.name} takes {len(residual.variables)} keys per factor; "
+                              f"got keys of shape {keys.shape}")
+        data = {name: np.asarray(v) for name, v in data.items()}
+        for name, v in data.items():
+            if len(v) != n:
+                raise PluginError(f"{spec.label}: {residual.name} data {name!r} has {len(v)} rows for {n} factors")
+        per_instance = np.ndim(sigmas) == 2
+        sigma_rows = np.broadcast_to(np.asarray(sigmas, dtype=float), (n, residual.dim)).copy()
+        if not np.all(sigma_rows > 0):
+            raise PluginError(f"{spec.label}: {residual.name} sigmas must be > 0")
+        times = np.broadcast_to(np.asarray(times, dtype=float), (n,)).tolist()
+        shared = None if per_instance else self.noise(sigma_rows[0] if n else np.ones(residual.dim), spec)
+        kernel = shared.robust() if isinstance(shared, gtsam.noiseModel.Robust) else None
+        if per_instance and n:
+            probe = self.noise(sigma_rows[0], spec)
+            kernel = probe.robust() if isinstance(probe, gtsam.noiseModel.Robust) else None
+        group = VectorizedGroup(residual, keys, data, sigma_rows, kernel)
+        for i in range(n):
+            noise = shared if shared is not None else self.noise(sigma_rows[i], spec)
+            factor = instance_factor(residual, noise, keys[i], {name: v[i:i + 1] for name, v in data.items()})
+            self.records.append(FactorRecord(factor, spec.label, times[i], group, i))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))

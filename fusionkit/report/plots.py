@@ -70,8 +70,9 @@ def plot_residuals(result: RunResult, file: Path) -> None:
     plt = _pyplot()
     groups: dict[str, list[float]] = {}
     values = result.solution.values
-    for r in result.problem.records:
-        groups.setdefault(r.label, []).append(float(np.sqrt(2.0 * r.factor.error(values) / max(r.factor.dim(), 1))))
+    errors = result.problem.evaluator().record_errors(values)
+    for r, error in zip(result.problem.records, errors):
+        groups.setdefault(r.label, []).append(float(np.sqrt(2.0 * error / max(r.factor.dim(), 1))))
     fig, ax = plt.subplots(figsize=(10, 1.2 + 0.5 * len(groups)))
     labels = list(groups)
     ax.boxplot([groups[k] for k in labels], orientation="horizontal", showfliers=True)

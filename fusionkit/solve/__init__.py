@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 
 from ..graph.builder import Problem
@@ -45,19 +44,19 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
         if kind == "batch" and linear_settings(settings)[0]:
-            result.covariances = recovered_marginals(graph, result.values, marginal_keys, settings["ordering"])
+            result.covariances = recovered_marginals(problem.evaluator(), result.values, marginal_keys, settings["ordering"])
         else:
-            result.covariances = marginal_covariances(graph, result, marginal_keys)
+            result.covariances = marginal_covariances(problem, result, marginal_keys)
         if settings["a_posteriori_sigmas"] and result.chi2_per_dof is not None:
             result.covariances = {k: c * result.chi2_per_dof for k, c in result.covariances.items()}
             result.sigmas_scaled = True
     return result
 
 
-def marginal_covariances(graph: gtsam.NonlinearFactorGraph, result: SolveResult, keys: set[int]) -> dict[int, np.ndarray]:
+def marginal_covariances(problem: Problem, result: SolveResult, keys: set[int]) -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at the estimate) of each key."""
     if not keys:
         return {}
     if result.marginal is None:
-        return tree_marginals(graph, result.values, keys)
+        return tree_marginals(problem.evaluator(), result.values, keys)
     return {k: np.asarray(result.marginal(k)) for k in keys}

@@ -51,7 +51,7 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
             values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress, qr, ordering)
         else:
             damping = DampingSettings() if method == "lm" else None
-            values, history = levenberg_marquardt(graph, problem.initial, rtol, atol, max_iterations, damping,
+            values, history = levenberg_marquardt(problem.evaluator(), problem.initial, rtol, atol, max_iterations, damping,
                                                   progress, qr, ordering, first)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)

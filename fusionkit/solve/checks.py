@@ -59,7 +59,7 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: b
         if key not in used:
             raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor: add a factor that "
                               "measures it, or remove what declares it")
-    linear = graph.linearize(problem.initial)
+    linear = problem.evaluator().linearize(problem.initial)
     try:
         return linear, eliminate(linear, qr, ordering)
     except RuntimeError as exc:
@@ -100,7 +100,7 @@ def chi_square_per_dof(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, 
 
 def worst_entries(problem: Problem, values: gtsam.Values, n: int = 3) -> str:
     totals: dict[str, float] = {}
-    for r in problem.records:
-        totals[r.label] = totals.get(r.label, 0.0) + r.factor.error(values)
+    for r, error in zip(problem.records, problem.evaluator().record_errors(values)):
+        totals[r.label] = totals.get(r.label, 0.0) + error
     top = sorted(totals.items(), key=lambda kv: -kv[1])[:n]
     return ", ".join(f"{label} ({cost:.3g})" for label, cost in top)

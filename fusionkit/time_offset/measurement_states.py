@@ -172,6 +172,7 @@ class MeasurementStates:
                     continue
                 if shifts:
                     r.factor = shifted_factor(r.factor, shifts, vartype_of)
+                    r.group = None  # now a factor of its own: evaluated through gtsam, not with its group
                     r.time = max(r.time, *(ctx.key_time[sh.window[-1]] for sh in shifts))
             kept.append(r)
         ctx.records[:] = kept

@@ -10,9 +10,9 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
-                           FactorType, gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
+                           FactorType, gaussian, vectorized_factor, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
 
-from .residuals import co_registration_residual, scaled_between_residual
+from .residuals import SCALED_BETWEEN, co_registration_residual
 
 SIGMA = POSE_SIGMA_SCHEMA
 
@@ -177,16 +177,6 @@ class RelativePose(FactorType):
         return FactorExample(gtsam.BetweenFactorPose3(0, 1, xa.between(xb), gaussian([0.01] * 6)), values)
 
 
-def _scaled_error(measured: gtsam.Pose3, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
-    k = this.keys()
-    return scaled_between_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atDouble(k[2]), measured, H)
-
-
-def scaled_between_factor(a: int, b: int, s: int, delta_unscaled: gtsam.Pose3, noise) -> gtsam.CustomFactor:
-    """Relative pose a->b measured in sensor units: true translation = s * measured (noise in sensor units)."""
-    return gtsam.CustomFactor(noise, [a, b, s], partial(_scaled_error, delta_unscaled))
-
-
 class ScaledRelativePose(FactorType):
     name = "pose.scaled_relative"
     summary = ("monocular visual odometry: relative pose with an unknown scale shared by the sequence "
@@ -213,13 +203,13 @@ class ScaledRelativePose(FactorType):
 
     def build(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
         scale = ctx.parameter(robot, spec["scale"])
         ka, before, after = odometry_pairs(ctx, spec, robot)
-        keys = ctx.state_keys(robot, np.column_stack([ka, ka + 1]).ravel())  # a, b, a, b, ...
-        times = ctx.state_set(robot).t[ka + 1].tolist()
-        for a, b, pa, pb, t in zip(keys[::2], keys[1::2], before, after, times):
-            ctx.add(scaled_between_factor(a, b, scale, pa.between(pb), noise), spec, t)
+        keys = np.asarray(ctx.state_keys(robot, np.column_stack([ka, ka + 1]).ravel())).reshape(-1, 2)
+        measured = np.array([pa.between(pb).matrix() for pa, pb in zip(before, after)]).reshape(-1, 4, 4)
+        ctx.add_vectorized(SCALED_BETWEEN, np.column_stack([keys, np.full(len(keys), scale)]),
+                           {"measured": measured}, pose_sigmas(spec["sigma"], False), spec,
+                           ctx.state_set(robot).t[ka + 1])
 
     @classmethod
     def example(cls, rng):
@@ -231,7 +221,9 @@ class ScaledRelativePose(FactorType):
         values.insert(1, xb)
         values.insert(2, s)
         meas = gtsam.Pose3(d.rotation(), d.translation() / s)
-        return FactorExample(scaled_between_factor(0, 1, 2, meas, gaussian([0.01] * 3 + [0.03] * 3)), values)
+        factor = vectorized_factor(SCALED_BETWEEN, gaussian([0.01] * 3 + [0.03] * 3), [0, 1, 2],
+                                   {"measured": meas.matrix()[None]})
+        return FactorExample(factor, values)
 
 
 def _co_reg_error(z: gtsam.Pose3, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:

@@ -5,11 +5,13 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
+from fusionkit.api import POSE3, SCALAR, VectorizedResidual, lie
 
-def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, measured: gtsam.Pose3,
-                            H: list | None = None) -> np.ndarray:
+
+def scaled_between(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
     """Relative pose with unknown scale (thesis eq. 4.3,
-    docs/models/cable_rigid.md#scaled-visual-odometry): the sensor reports (R, t / s).
+    docs/models/cable_rigid.md#scaled-visual-odometry) for N factors: the sensor reports (R, t / s).
+    x = [xa (N, 4, 4), xb (N, 4, 4), s (N,)], data["measured"] (N, 4, 4).
 
     The residual lives in the sensor's own units, where its noise does not depend on s:
     B = xa^-1 xb, B_s = (R_B, t_B / s), e = Log(measured^-1 B_s) (rotation rad, translation in
@@ -17,18 +19,22 @@ def scaled_between_residual(xa: gtsam.Pose3, xb: gtsam.Pose3, scale: float, meas
     the scale low.) With D = diag(I, I/s), E = measured^-1 B_s and Jr^-1 at e:
     d/dxb = Jr^-1 D;  d/dxa = -Jr^-1 D Ad(B^-1);  d/ds = Jr^-1 [0; -R_B^T t_B / s^2].
     """
-    between = xa.between(xb)
-    t = between.translation()
-    err = measured.between(gtsam.Pose3(between.rotation(), t / scale))
-    e = gtsam.Pose3.Logmap(err)
-    if H is not None:
-        j_inv = gtsam.Pose3.LogmapDerivative(e)
-        jd = j_inv.copy()
-        jd[:, 3:] /= scale
-        H[1] = jd
-        H[0] = -jd @ between.inverse().AdjointMap()
-        H[2] = (j_inv[:, 3:] @ (-between.rotation().unrotate(t) / scale**2)).reshape(6, 1)
-    return e
+    xa, xb, s = x
+    between = lie.inverse(xa) @ xb
+    scaled = between.copy()
+    scaled[:, :3, 3] /= s[:, None]
+    e = lie.log(lie.inverse(data["measured"]) @ scaled)
+    if not jacobians:
+        return e
+    j_inv = lie.jr_inv(e)
+    jd = j_inv.copy()
+    jd[:, :, 3:] /= s[:, None, None]
+    local_t = np.einsum("nji,nj->ni", between[:, :3, :3], between[:, :3, 3])  # R_B^T t_B
+    d_scale = j_inv[:, :, 3:] @ (-local_t / s[:, None] ** 2)[:, :, None]
+    return e, [-jd @ lie.adjoint(lie.inverse(between)), jd, d_scale]
+
+
+SCALED_BETWEEN = VectorizedResidual("pose.scaled_relative", (POSE3, POSE3, SCALAR), 6, scaled_between)
 
 
 def co_registration_residual(xa: gtsam.Pose3, base: gtsam.Pose3, xb: gtsam.Pose3, z: gtsam.Pose3,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from . import lie
+from fusionkit.api import lie
 from .chain import PIN_TO_GTSAM, SerialChain
 from .kinematics import Layout, Parameters, joint_deltas
 

@@ -27,7 +27,7 @@ import gtsam
 import numpy as np
 import pinocchio as pin
 
-from .lie import adjoint, inverse
+from fusionkit.api import lie
 
 PIN_TO_GTSAM = [3, 4, 5, 0, 1, 2]  # rows of a Pinocchio twist [v, w] in GTSAM's order [w, v]
 
@@ -103,7 +103,7 @@ class SerialChain:
         self._plain = self.model.nq == self.model.nv  # no continuous (cos, sin) joints: q is the angles
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         self.universe_T_base = pin.updateFramePlacement(self.model, self.data, base_id).homogeneous
-        self.base_T_universe = inverse(self.universe_T_base)
+        self.base_T_universe = lie.inverse(self.universe_T_base)
         self.prismatic = [self.model.joints[jid].shortname().startswith("JointModelP") for jid in self.jids]
         self.lower = np.array([self.model.lowerPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
         self.upper = np.array([self.model.upperPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
@@ -149,11 +149,11 @@ class SerialChain:
         pin.computeJointJacobians(model, data, config)
         universe_T_tool = pin.updateFramePlacement(model, data, self.tool_id).homogeneous
         J = pin.getFrameJacobian(model, data, self.tool_id, pin.LOCAL)[PIN_TO_GTSAM][:, self.idx_v]
-        tool_T_universe = inverse(universe_T_tool)
+        tool_T_universe = lie.inverse(universe_T_tool)
         blocks = []
         for j, jid in enumerate(self.jids):  # joint j's frame before it moves: universe_T_parent * parent_T_joint
             before = (data.oMi[model.parents[jid]] * model.jointPlacements[jid]).homogeneous
-            block = adjoint(tool_T_universe @ before)  # d twist / d (right perturbation of the placement)
+            block = lie.adjoint(tool_T_universe @ before)  # d twist / d (right perturbation of the placement)
             if j in self._perturbed:  # Exp(delta + d) = Exp(delta) Exp(Jr(delta) d)
                 block = block @ gtsam.Pose3.ExpmapDerivative(np.asarray(placements[j], float))
             blocks.append(block)

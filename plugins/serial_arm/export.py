@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from fusionkit.api import RobotDescription
 
-from . import lie
+from fusionkit.api import lie
 from .batch import batch_chain
 from .chain import SerialChain
 from .factors import entry_layout

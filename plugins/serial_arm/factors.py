@@ -18,7 +18,7 @@ from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, Fa
 
 from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
-from .lie import inverse
+from fusionkit.api import lie
 from .model import arm_of, chain_from
 from .urdf import PREFIX, urdf_path
 
@@ -142,7 +142,7 @@ class ToolPose(ArmMeasurement):
         scope.require_columns(spec, "stream", POSE_COLUMNS)
 
     def measured(self, stream, rows: np.ndarray) -> np.ndarray:
-        return inverse(pose_matrices(stream.pose_array()[rows]))
+        return lie.inverse(pose_matrices(stream.pose_array()[rows]))
 
     @classmethod
     def example(cls, rng):
@@ -150,7 +150,7 @@ class ToolPose(ArmMeasurement):
         q = rng.uniform(-np.pi, np.pi, chain.n)
         values = example_values(layout, p, q)
         z = marker_pose(chain, layout, q, p)[0]  # Pinocchio's forward kinematics: the batched code must agree
-        evaluator = EntryEvaluator(chain, layout, cls.kind, inverse(z[None]), [list(range(values.size()))])
+        evaluator = EntryEvaluator(chain, layout, cls.kind, lie.inverse(z[None]), [list(range(values.size()))])
         return FactorExample(marker_factor(gaussian([1e-3] * 6), list(range(values.size())), evaluator, 0), values)
 
 
@@ -205,15 +205,15 @@ class RelativeToolPose(ArmMeasurement):
     def measured(self, stream, rows: np.ndarray) -> np.ndarray:
         """z^-1 = P_b^-1 P_a for the measured motion z = P_a^-1 P_b of each pair."""
         poses = stream.pose_array()
-        return inverse(pose_matrices(poses[rows[:, 1]])) @ pose_matrices(poses[rows[:, 0]])
+        return lie.inverse(pose_matrices(poses[rows[:, 1]])) @ pose_matrices(poses[rows[:, 0]])
 
     @classmethod
     def example(cls, rng):
         chain, layout, p = example_arm(rng, "pose3", base=False)
         qa, qb = rng.uniform(-np.pi, np.pi, (2, chain.n))
         values = example_values(layout, p, qa, qb)
-        z = inverse(marker_pose(chain, layout, qa, p)[0]) @ marker_pose(chain, layout, qb, p)[0]
-        evaluator = EntryEvaluator(chain, layout, cls.kind, inverse(z[None]), [list(range(values.size()))])
+        z = lie.inverse(marker_pose(chain, layout, qa, p)[0]) @ marker_pose(chain, layout, qb, p)[0]
+        evaluator = EntryEvaluator(chain, layout, cls.kind, lie.inverse(z[None]), [list(range(values.size()))])
         return FactorExample(marker_factor(gaussian([1e-3] * 6), list(range(values.size())), evaluator, 0), values)
 
 

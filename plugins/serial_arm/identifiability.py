@@ -23,7 +23,7 @@ import scipy.linalg
 from . import batch
 from .chain import SerialChain
 from .kinematics import Layout, Parameters
-from .lie import adjoint, inverse
+from fusionkit.api import lie
 
 TOLERANCE = 1e-8   # relative pivot below which a column is a combination of the others
 SUPPORT = 1e-6     # relative weight below which a parameter is not part of a combination
@@ -39,7 +39,7 @@ def kinematic_regressor(chain: SerialChain, layout: Layout, p: Parameters, confi
     if kind == "relative":
         a = batch.marker_poses(chain, layout, q[:, 0], p, True)
         b = batch.marker_poses(chain, layout, q[:, 1], p, True)
-        back = adjoint(inverse(inverse(a.T) @ b.T))
+        back = lie.adjoint(lie.inverse(lie.inverse(a.T) @ b.T))
         J = np.concatenate([y - back @ x for x, y in zip(a.blocks[1:], b.blocks[1:])] or [np.zeros((N, 6, 0))], axis=2)
     else:
         poses = batch.marker_poses(chain, layout, q, p, True)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .chain import SerialChain
-from .lie import adjoint, inverse
+from fusionkit.api import lie
 
 
 @dataclass(frozen=True)
@@ -88,11 +88,11 @@ def marker_pose(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameters
     T = B @ flange.T @ M
     if not jacobians:
         return T, None
-    ad_tool = adjoint(inverse(M))  # a twist of the flange seen at the marker
+    ad_tool = lie.adjoint(lie.inverse(M))  # a twist of the flange seen at the marker
     J_q = ad_tool @ flange.joints
     blocks = [J_q]
     if layout.base:
-        blocks.append(adjoint(inverse(flange.T @ M)))
+        blocks.append(lie.adjoint(lie.inverse(flange.T @ M)))
     if layout.tool:
         blocks.append(np.eye(6) if layout.tool == "pose3" else np.eye(6)[:, 3:])
     blocks += [J_q[:, [j]] for j in layout.offsets]

@@ -23,8 +23,8 @@ def problem():
 @pytest.mark.parametrize("qr, ordering, damping", [(False, "colamd", DampingSettings()), (True, "colamd", None),
                                                     (False, "metis", DampingSettings())])
 def test_reusing_the_checks_elimination_changes_no_iterate(problem, qr, ordering, damping):
-    graph = problem.graph()
-    first = check_constrained(problem, graph, qr, ordering)
+    graph = problem.evaluator()
+    first = check_constrained(problem, problem.graph(), qr, ordering)
     reused, history = levenberg_marquardt(graph, problem.initial, 1e-6, 1e-9, 100, damping, None, qr, ordering, first)
     again, history_again = levenberg_marquardt(graph, problem.initial, 1e-6, 1e-9, 100, damping, None, qr, ordering)
     assert history == history_again and len(history) > 2

@@ -6,7 +6,6 @@ Poses are (N, 4, 4) homogeneous matrices, twists (N, 6)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 SMALL = 1e-4  # rad: below it the closed forms are replaced by their Taylor series
 
@@ -115,9 +114,42 @@ def jr_inv(xi: np.ndarray) -> np.ndarray:
     return out
 
 
+def rotation_log(R: np.ndarray) -> np.ndarray:
+    """Log of rotation matrices (..., 3, 3) -> rotation vectors (..., 3), angle in [0, pi]: through the
+    unit quaternion taken from the largest of its four components (Shepperd), accurate up to pi."""
+    d = np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]], axis=-1)
+    trace = d.sum(axis=-1)
+    candidates = np.concatenate([d, trace[..., None]], axis=-1)  # 4 q_i^2 - 1 for i = x, y, z, w (up to 1 + ...)
+    pick = np.argmax(candidates, axis=-1)
+    q = np.empty(R.shape[:-2] + (4,))
+    for i in range(3):  # x, y, z largest
+        j, k = (i + 1) % 3, (i + 2) % 3
+        sel = pick == i
+        Rs = R[sel]
+        qi = np.sqrt(np.maximum(1 + 2 * Rs[:, i, i] - trace[sel], 0.0)) / 2
+        q[sel, i] = qi
+        q[sel, j] = (Rs[:, j, i] + Rs[:, i, j]) / (4 * qi)
+        q[sel, k] = (Rs[:, k, i] + Rs[:, i, k]) / (4 * qi)
+        q[sel, 3] = (Rs[:, k, j] - Rs[:, j, k]) / (4 * qi)
+    sel = pick == 3
+    Rs = R[sel]
+    qw = np.sqrt(np.maximum(1 + trace[sel], 0.0)) / 2
+    q[sel, 3] = qw
+    q[sel, 0] = (Rs[:, 2, 1] - Rs[:, 1, 2]) / (4 * qw)
+    q[sel, 1] = (Rs[:, 0, 2] - Rs[:, 2, 0]) / (4 * qw)
+    q[sel, 2] = (Rs[:, 1, 0] - Rs[:, 0, 1]) / (4 * qw)
+    q *= np.where(q[..., 3:] < 0, -1.0, 1.0)  # w >= 0: angle in [0, pi]
+    v = q[..., :3]
+    sin_half = np.linalg.norm(v, axis=-1)
+    angle = 2 * np.arctan2(sin_half, q[..., 3])
+    small = sin_half < 1e-12
+    scale = np.where(small, 2.0 / np.where(q[..., 3] == 0, 1.0, q[..., 3]), angle / np.where(small, 1.0, sin_half))
+    return v * scale[..., None]
+
+
 def log(T: np.ndarray) -> np.ndarray:
     """Log of poses (N, 4, 4) -> twists (N, 6); the rotation angle in [0, pi]."""
-    w = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(T.shape[:-2] + (3,))
+    w = rotation_log(T[..., :3, :3])
     theta = np.linalg.norm(w, axis=-1)[..., None, None]
     t = np.where(theta < SMALL, 1.0, theta)
     k = np.where(theta < SMALL, 1 / 12 + theta ** 2 / 720, 1 / t ** 2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))

@@ -1,0 +1,230 @@
+"""Factors evaluated many at a time (docs/plugin_guide.md#vectorized-factors).
+
+A plugin writes ONE residual function for N factor instances at once, on numpy arrays with a leading
+axis N, and adds them with `ctx.add_vectorized`. fusionkit then
+- linearizes all instances of the entry in one call of that function per solver iteration
+  (fusionkit's batch LM/GN, its checks and marginals: `GraphEvaluator`), and
+- wraps each instance as a `gtsam.CustomFactor` that calls the same function at N = 1, for every other
+  GTSAM caller (Dogleg, iSAM2, fixed-lag, reports) and for the factor contract suite.
+
+Variables reach the function in these array forms (leading axis N):
+    pose3 (N, 4, 4) homogeneous; pose2 (N, 3) [x, y, theta]; rot3 (N, 3, 3); scalar (N,);
+    point3, point2, velocity3, vectorD (N, D); imu_bias (N, 6) [accelerometer, gyroscope].
+Jacobians are with respect to GTSAM's local coordinates: right perturbations X Exp(d) of poses and
+rotations, additive for vectors; one (N, dim, d_j) array per variable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import gtsam
+import numpy as np
+
+from .. import lie
+from .variables import VarType
+
+Function = Callable[[list[np.ndarray], dict[str, np.ndarray], bool], Any]
+NUMERICAL_STEP = 1e-6
+
+
+# --- array forms of the variable types ------------------------------------------------------------
+def _one(vartype: VarType, value: Any) -> np.ndarray:
+    """A gtsam value -> its array form (without the leading axis)."""
+    name = vartype.name
+    if name == "pose3":
+        return value.matrix()
+    if name == "pose2":
+        return np.array([value.x(), value.y(), value.theta()])
+    if name == "rot3":
+        return value.matrix()
+    if name == "imu_bias":
+        return np.asarray(value.vector(), dtype=float)
+    return np.asarray(value, dtype=float)
+
+
+class ValueReader:
+    """Reads variables of one gtsam.Values in array form; each pose type's table is extracted once
+    (one C++ call for all poses) and shared by every group read at these values."""
+
+    def __init__(self, values: gtsam.Values):
+        self.values = values
+        self._tables: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _table(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in self._tables:
+            extract, select = ((gtsam.utilities.extractPose3, gtsam.utilities.allPose3s) if name == "pose3"
+                               else (gtsam.utilities.extractPose2, gtsam.utilities.allPose2s))
+            stored = np.asarray(select(self.values).keys(), dtype=np.int64)  # sorted, as the table's rows
+            self._tables[name] = (stored, extract(self.values))
+        return self._tables[name]
+
+    def read(self, vartype: VarType, keys: np.ndarray) -> np.ndarray:
+        """The values of `keys` (N,) in their array form (N, ...)."""
+        if vartype.name in ("pose3", "pose2"):
+            stored, table = self._table(vartype.name)
+            rows = table[np.searchsorted(stored, keys)]
+            if vartype.name == "pose2":
+                return rows
+            out = np.zeros((len(keys), 4, 4))
+            out[:, :3, :3] = rows[:, :9].reshape(-1, 3, 3)
+            out[:, :3, 3] = rows[:, 9:]
+            out[:, 3, 3] = 1.0
+            return out
+        unique, inverse = np.unique(keys, return_inverse=True)
+        arrays = np.array([_one(vartype, vartype.read(self.values, int(k))) for k in unique])
+        return arrays[inverse]
+
+
+def retract_arrays(vartype: VarType, x: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """x (+) d for N values at once, as GTSAM's retract (Expmap charts for poses and rotations)."""
+    name = vartype.name
+    if name == "pose3":
+        return x @ lie.exp(d)
+    if name == "rot3":
+        return x @ lie.exp(np.concatenate([d, np.zeros_like(d)], axis=-1))[..., :3, :3]
+    if name == "pose2":
+        return x + _se2_increment(x[..., 2], d)
+    return x + (d[..., 0] if x.ndim == 1 else d)
+
+
+def _se2_increment(theta: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Pose2 (x, y, theta) Exp(d) - (x, y, theta), d = [vx, vy, w] (GTSAM's Pose2 Expmap)."""
+    vx, vy, w = d[..., 0], d[..., 1], d[..., 2]
+    small = np.abs(w) < 1e-9
+    ws = np.where(small, 1.0, w)
+    s, c = np.sin(w), np.cos(w)
+    lx = np.where(small, vx - 0.5 * w * vy, (vx * s - vy * (1 - c)) / ws)
+    ly = np.where(small, vy + 0.5 * w * vx, (vx * (1 - c) + vy * s) / ws)
+    ct, st = np.cos(theta), np.sin(theta)
+    return np.stack([ct * lx - st * ly, st * lx + ct * ly, w], axis=-1)
+
+
+# --- the residual ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class VectorizedResidual:
+    """A residual of `dim` rows over variables of the types `variables`, for N instances at once.
+
+    `function(x, data, jacobians)`: `x` one array per variable (forms in the module docstring),
+    `data` the instances' measurements {name: (N, ...)}; returns the residuals (N, dim), and with
+    `jacobians=True` a pair (residuals, [d residual / d variable j, (N, dim, d_j)]).
+    `jacobians="numerical"` at construction: the function only ever returns residuals and fusionkit
+    takes central differences on the manifold (2 x total variable dimension calls, each vectorized)."""
+
+    name: str
+    variables: tuple[VarType, ...]
+    dim: int
+    function: Function
+    jacobians: str = "analytic"
+
+    def __post_init__(self):
+        if self.jacobians not in ("analytic", "numerical"):
+            raise ValueError(f"{self.name}: jacobians must be 'analytic' or 'numerical', not {self.jacobians!r}")
+
+    def evaluate(self, x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
+        """Residuals (N, dim), or (residuals, Jacobians) with `jacobians`."""
+        if self.jacobians == "analytic":
+            return self.function(x, data, jacobians)
+        r = self.function(x, data, False)
+        if not jacobians:
+            return r
+        return r, [self._numerical(x, data, j) for j in range(len(x))]
+
+    def _numerical(self, x: list[np.ndarray], data: dict[str, np.ndarray], j: int) -> np.ndarray:
+        vartype = self.variables[j]
+        n = len(x[j])
+        columns = []
+        for a in range(vartype.dim):
+            d = np.zeros((n, vartype.dim))
+            d[:, a] = NUMERICAL_STEP
+            plus, minus = list(x), list(x)
+            plus[j], minus[j] = retract_arrays(vartype, x[j], d), retract_arrays(vartype, x[j], -d)
+            columns.append((self.function(plus, data, False) - self.function(minus, data, False))
+                           / (2 * NUMERICAL_STEP))
+        return np.stack(columns, axis=-1)
+
+
+def _slice(data: dict[str, np.ndarray], i: int) -> dict[str, np.ndarray]:
+    return {name: array[i:i + 1] for name, array in data.items()}
+
+
+def instance_factor(residual: VectorizedResidual, noise: gtsam.noiseModel.Base, keys, data_i: dict[str, np.ndarray]
+                    ) -> gtsam.CustomFactor:
+    """One instance as a gtsam.CustomFactor: the same function at N = 1 (`data_i` arrays of length 1)."""
+    types = residual.variables
+
+    def error(this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
+        x = [_one(t, t.read(v, k))[None] for t, k in zip(types, this.keys())]
+        if H is None:
+            return np.asarray(residual.evaluate(x, data_i, False), dtype=float)[0]
+        r, jac = residual.evaluate(x, data_i, True)
+        for j, block in enumerate(jac):
+            H[j] = np.asarray(block[0], dtype=float).reshape(residual.dim, types[j].dim)
+        return np.asarray(r, dtype=float)[0]
+
+    return gtsam.CustomFactor(noise, [int(k) for k in keys], error)
+
+
+# --- many instances: whitening, kernels, linear factors -----------------------------------------------
+class VectorizedGroup:
+    """The instances one entry added with one call: keys (N, k), data {name: (N, ...)}, sigmas (N, dim)
+    and the entry's robust kernel (None or a gtsam mEstimator)."""
+
+    def __init__(self, residual: VectorizedResidual, keys: np.ndarray, data: dict[str, np.ndarray],
+                 sigmas: np.ndarray, kernel):
+        self.residual = residual
+        self.keys = keys
+        self.data = data
+        self.sigmas = sigmas
+        self.kernel = kernel
+
+    def subset(self, rows: np.ndarray) -> "VectorizedGroup":
+        if len(rows) == len(self.keys):
+            return self
+        return VectorizedGroup(self.residual, self.keys[rows], {k: v[rows] for k, v in self.data.items()},
+                               self.sigmas[rows], self.kernel)
+
+    def _variables(self, reader: ValueReader) -> list[np.ndarray]:
+        return [reader.read(t, self.keys[:, j]) for j, t in enumerate(self.residual.variables)]
+
+    def _weights(self, whitened: np.ndarray) -> np.ndarray:
+        """sqrt of the kernel's weight at each instance's whitened norm (GTSAM's Robust.reweight)."""
+        if self.kernel is None:
+            return np.ones(len(whitened))
+        norms = np.linalg.norm(whitened, axis=1)
+        return np.sqrt([self.kernel.weight(float(d)) for d in norms])
+
+    def residuals(self, reader: ValueReader) -> np.ndarray:
+        """Unwhitened residuals (N, dim)."""
+        r = self.residual.evaluate(self._variables(reader), self.data, False)
+        return np.asarray(r, dtype=float).reshape(len(self.keys), self.residual.dim)
+
+    def errors(self, reader: ValueReader) -> np.ndarray:
+        """Each instance's error as GTSAM's NoiseModelFactor.error: 0.5 |r/sigma|^2, or the kernel's loss."""
+        whitened = self.residuals(reader) / self.sigmas
+        if self.kernel is None:
+            return 0.5 * np.einsum("ij,ij->i", whitened, whitened)
+        return np.array([self.kernel.loss(float(d)) for d in np.linalg.norm(whitened, axis=1)])
+
+    def linear_factors(self, reader: ValueReader) -> list[gtsam.JacobianFactor]:
+        """Whitened Jacobian factors of all instances, linearized in one call of the residual."""
+        r, jac = self.residual.evaluate(self._variables(reader), self.data, True)
+        n = len(self.keys)
+        r = np.asarray(r, dtype=float).reshape(n, -1)
+        w = self._weights(r / self.sigmas)[:, None] / self.sigmas
+        b = -(r * w)
+        blocks = [np.asfortranarray(np.asarray(J, dtype=float).reshape(n, self.residual.dim, -1) * w[:, :, None])
+                  for J in jac]
+        unit = gtsam.noiseModel.Unit.Create(self.residual.dim)
+        keys = self.keys.tolist()
+        if len(blocks) == 1:
+            return [gtsam.JacobianFactor(k[0], A, bi, unit) for k, A, bi in zip(keys, blocks[0], b)]
+        if len(blocks) == 2:
+            return [gtsam.JacobianFactor(k[0], A0, k[1], A1, bi, unit)
+                    for k, A0, A1, bi in zip(keys, blocks[0], blocks[1], b)]
+        if len(blocks) == 3:
+            return [gtsam.JacobianFactor(k[0], A0, k[1], A1, k[2], A2, bi, unit)
+                    for k, A0, A1, A2, bi in zip(keys, blocks[0], blocks[1], blocks[2], b)]
+        raise ValueError(f"{self.residual.name}: more than three variables are linearized per instance "
+                         "(GaussianFactor bindings take at most three blocks)")
