@@ -22,7 +22,10 @@ import numpy as np
 
 from ..errors import SolverError
 from ..graph.builder import Problem
+from ..graph.evaluator import GraphEvaluator
 from .checks import check_constrained, unconstrained_message
+from .linear_containers import LinearContainers
+from .marginals import tree_marginals
 from .result import SolveResult
 
 
@@ -45,39 +48,38 @@ def value_subset(problem: Problem, keys: list[int], source: gtsam.Values | None 
     return out
 
 
-def time_steps(problem: Problem) -> Iterator[tuple[float, gtsam.NonlinearFactorGraph, list[int]]]:
-    """(time, factors, keys first seen) per distinct factor time, in time order."""
+def time_steps(problem: Problem) -> Iterator[tuple[float, list, list[int]]]:
+    """(time, factor records, keys first seen) per distinct factor time, in time order."""
     seen: set[int] = set()
     for t, group in groupby(sorted(problem.records, key=lambda r: r.time), key=lambda r: r.time):
-        graph = gtsam.NonlinearFactorGraph()
+        records = list(group)
         new = []
-        for r in group:
-            graph.add(r.factor)
+        for r in records:
             for k in r.factor.keys():
                 if k not in seen:
                     seen.add(k)
                     new.append(k)
-        yield t, graph, new
+        yield t, records, new
 
 
-def warm_start(problem: Problem, steps: list, seconds: float
-               ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, float, list]:
-    """Merge the time steps up to `seconds` after the first state into one graph, solve it with
-    batch LM from the initial values; returns (graph, its solution, last merged time, the rest)."""
+def warm_start(problem: Problem, steps: list, seconds: float) -> tuple[list, gtsam.Values, float, list]:
+    """Merge the time steps up to `seconds` after the first state into one, solve it with batch LM from
+    the initial values; returns (its factor records, their solution, last merged time, the other steps)."""
     from .levenberg import DampingSettings, levenberg_marquardt
     finite = [t for t, _, _ in steps if np.isfinite(t)]
     end = (finite[0] if finite else 0.0) + seconds
-    graph, keys, rest = gtsam.NonlinearFactorGraph(), [], []
+    records, keys, rest = [], [], []
     last = float("-inf")
-    for t, factors, new in steps:
+    for t, step_records, new in steps:
         if t <= end:
-            graph.push_back(factors)
+            records += step_records
             keys += new
             last = t
         else:
-            rest.append((t, factors, new))
-    values, _ = levenberg_marquardt(graph, value_subset(problem, keys), 1e-6, 1e-9, 100, DampingSettings())
-    return graph, values, last, rest
+            rest.append((t, step_records, new))
+    values, _ = levenberg_marquardt(GraphEvaluator(records), value_subset(problem, keys), 1e-6, 1e-9, 100,
+                                    DampingSettings())
+    return records, values, last, rest
 
 
 def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
@@ -88,56 +90,72 @@ def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
                       "static parameters need a prior until the data constrain them)") from None
 
 
-def _timed_step(problem: Problem, t: float, update: Callable[[], object],
-                estimate: Callable[[], gtsam.Values]) -> tuple[gtsam.Values, float]:
-    """Run one solver update and compute the estimate it hands out; return (estimate, wall time
-    of both in s), turning an indeterminate system into a SolverError."""
+def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values]) -> tuple[gtsam.Values, float]:
+    """Run one solver update, which returns the estimate it hands out; return (estimate, wall time in s),
+    turning an indeterminate system into a SolverError."""
     tic = time.perf_counter()
     try:
-        update()
+        values = update()
     except RuntimeError as exc:
         _raise_unconstrained(problem, exc, t)
-    values = estimate()
     return values, time.perf_counter() - tic
 
 
-def _settle(isam: gtsam.ISAM2, estimate: gtsam.Values, updates: int = 10) -> gtsam.Values:
+def _settle(isam: gtsam.ISAM2, containers: LinearContainers, estimate: gtsam.Values,
+            updates: int = 10) -> gtsam.Values:
     """Updates without new factors until the estimate stops moving (at most `updates`): each update takes
     one Gauss-Newton step, so the factors of the last update are still linearized at their initial values,
     and the final estimate and marginals would carry those Jacobians. Variables whose change stays below
     `relinearize_threshold` are not relinearized (a time offset moving by milliseconds: see
-    docs/models/unified_graph.md#time-offsets)."""
+    docs/models/unified_graph.md#time-offsets); vectorized factors due again are swapped in."""
     for _ in range(updates):
-        isam.update()
+        step = containers.step([], estimate, gtsam.Values())
+        result = isam.update(step.graph, gtsam.Values(), step.remove)
+        containers.added(step, result.getNewFactorsIndices())
         settled = isam.calculateEstimate()
         moved = np.abs(settled.localCoordinates(estimate).vector()).max()
         estimate = settled
-        if moved < 1e-9:
+        due = containers.review(estimate, result.getMarkedKeys())
+        if moved < 1e-9 and not due:
             break
     return estimate
+
+
+def _containers(problem: Problem, settings: dict) -> LinearContainers:
+    return LinearContainers(settings["relinearize_threshold"], lambda k: problem.keys.decode(k)[0].vartype)
 
 
 def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
     graph = problem.graph()
     check_constrained(problem, graph)
     isam = gtsam.ISAM2(_isam2_params(settings))
+    containers = _containers(problem, settings)
     latency = []
     start = time.perf_counter()
     steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
+
+    def update(records, values: gtsam.Values) -> gtsam.Values:
+        step = containers.step(records, estimate, values)
+        result = isam.update(step.graph, values, step.remove)
+        containers.added(step, result.getNewFactorsIndices())
+        current = isam.calculateEstimate()
+        containers.review(current, result.getMarkedKeys())
+        return current
+
     if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, values, t, steps = warm_start(problem, steps, settings["warmup"])
-        estimate, _ = _timed_step(problem, t, lambda: isam.update(first, values), isam.calculateEstimate)
+        estimate, _ = _timed_step(problem, t, lambda: update(first, values))
         warmup = time.perf_counter() - tic
-    for i, (t, factors, new) in enumerate(steps):
-        estimate, dt = _timed_step(problem, t, lambda: isam.update(factors, value_subset(problem, new)),
-                                   isam.calculateEstimate)
+    for i, (t, records, new) in enumerate(steps):
+        estimate, dt = _timed_step(problem, t, lambda: update(records, value_subset(problem, new)))
         latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
-    estimate = _settle(isam, estimate)
+    estimate = _settle(isam, containers, estimate)
     seconds = time.perf_counter() - start
-    return SolveResult(estimate, "isam2", graph.error(problem.initial), graph.error(estimate), len(latency),
+    cost = problem.evaluator().error
+    return SolveResult(estimate, "isam2", cost(problem.initial), cost(estimate), len(latency),
                        seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance,
                        warmup_seconds=warmup)
 
@@ -152,6 +170,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     check_constrained(problem, graph)
     lag = float(settings["lag"])
     smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(settings))
+    containers = _containers(problem, settings)
     static = [k for k, t in problem.key_time.items() if t == float("-inf")]
     in_window: dict[int, float] = {}
     final: dict[int, object] = {}
@@ -159,7 +178,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     latency = []
     start = time.perf_counter()
     now, est = None, gtsam.Values()  # est: the estimate handed out after the latest update
-    steps, warm_values, warmup = list(time_steps(problem)), None, 0.0
+    steps, warm_values, warmup, early = list(time_steps(problem)), None, 0.0, []
     if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, warm_values, t, steps = warm_start(problem, steps, settings["warmup"])
@@ -167,13 +186,22 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         # states older than the window leave inside the first update: keep their warm-up solution
         early = [k for k in warm_values.keys() if problem.key_time[k] != float("-inf")
                  and problem.key_time[k] < t - lag]
-        marginal = gtsam.Marginals(first, warm_values) if marginal_keys and early else None
         for k in early:
             final[k] = problem.keys.decode(k)[0].vartype.read(warm_values, k)
-            if marginal is not None and k in marginal_keys:
-                covariances[k] = marginal.marginalCovariance(k)
+        if marginal_keys and early:
+            covariances.update(tree_marginals(GraphEvaluator(first), warm_values, set(early) & marginal_keys))
         warmup = time.perf_counter() - tic
-    for i, (t, factors, new) in enumerate(steps):
+    def update(records, values: gtsam.Values, stamps: dict, leaving: list[int]) -> gtsam.Values:
+        step = containers.step(records, est, values)
+        smoother.update(step.graph, values, stamps, step.remove)
+        result = smoother.getISAM2Result()
+        containers.added(step, result.getNewFactorsIndices())
+        containers.forget(leaving)  # marginalized inside the update, with their factors
+        current = smoother.calculateEstimate()
+        containers.review(current, result.getMarkedKeys())
+        return current
+
+    for i, (t, records, new) in enumerate(steps):
         now = t if np.isfinite(t) else (now if now is not None else 0.0)
         leaving = [k for k, kt in in_window.items() if kt < now - lag]
         if leaving:
@@ -189,8 +217,8 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             if kt != float("-inf") and k not in final:
                 in_window[k] = kt
         values = warm_values if i == 0 and warm_values is not None else value_subset(problem, new)
-        est, dt = _timed_step(problem, now, lambda: smoother.update(factors, values, stamps),
-                              smoother.calculateEstimate)
+        gone = early if i == 0 and warm_values is not None else leaving
+        est, dt = _timed_step(problem, now, lambda: update(records, values, stamps, gone))
         if i == 0 and warm_values is not None:
             warmup += dt
         else:
@@ -204,5 +232,6 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         if marginal_keys and k in marginal_keys and est.exists(k):
             covariances[k] = smoother.marginalCovariance(k)
     seconds = time.perf_counter() - start
-    return SolveResult(estimate, "fixed_lag", graph.error(problem.initial), graph.error(estimate), len(latency),
+    cost = problem.evaluator().error
+    return SolveResult(estimate, "fixed_lag", cost(problem.initial), cost(estimate), len(latency),
                        seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup)
