@@ -180,7 +180,7 @@ class VectorizedGroup:
         self.kernel = kernel
 
     def subset(self, rows: np.ndarray) -> "VectorizedGroup":
-        if len(rows) == len(self.keys):
+        if len(rows) == len(self.keys) and np.array_equal(rows, np.arange(len(rows))):
             return self
         return VectorizedGroup(self.residual, self.keys[rows], {k: v[rows] for k, v in self.data.items()},
                                self.sigmas[rows], self.kernel)

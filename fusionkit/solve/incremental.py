@@ -107,16 +107,16 @@ def _settle(isam: gtsam.ISAM2, containers: LinearContainers, estimate: gtsam.Val
     one Gauss-Newton step, so the factors of the last update are still linearized at their initial values,
     and the final estimate and marginals would carry those Jacobians. Variables whose change stays below
     `relinearize_threshold` are not relinearized (a time offset moving by milliseconds: see
-    docs/models/unified_graph.md#time-offsets); vectorized factors due again are swapped in."""
+    docs/models/unified_graph.md#time-offsets). Vectorized factors are relinearized as the solver
+    relinearizes (linear_containers.py)."""
     for _ in range(updates):
-        step = containers.step([], estimate, gtsam.Values())
+        step = containers.step([], isam, gtsam.Values())
         result = isam.update(step.graph, gtsam.Values(), step.remove)
         containers.added(step, result.getNewFactorsIndices())
         settled = isam.calculateEstimate()
         moved = np.abs(settled.localCoordinates(estimate).vector()).max()
         estimate = settled
-        due = containers.review(estimate, result.getMarkedKeys())
-        if moved < 1e-9 and not due:
+        if moved < 1e-9:
             break
     return estimate
 
@@ -135,12 +135,10 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
 
     def update(records, values: gtsam.Values) -> gtsam.Values:
-        step = containers.step(records, estimate, values)
+        step = containers.step(records, isam, values)
         result = isam.update(step.graph, values, step.remove)
         containers.added(step, result.getNewFactorsIndices())
-        current = isam.calculateEstimate()
-        containers.review(current, result.getMarkedKeys())
-        return current
+        return isam.calculateEstimate()
 
     if settings["warmup"] > 0:
         tic = time.perf_counter()
@@ -192,14 +190,11 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             covariances.update(tree_marginals(GraphEvaluator(first), warm_values, set(early) & marginal_keys))
         warmup = time.perf_counter() - tic
     def update(records, values: gtsam.Values, stamps: dict, leaving: list[int]) -> gtsam.Values:
-        step = containers.step(records, est, values)
+        step = containers.step(records, smoother, values)
         smoother.update(step.graph, values, stamps, step.remove)
-        result = smoother.getISAM2Result()
-        containers.added(step, result.getNewFactorsIndices())
+        containers.added(step, smoother.getISAM2Result().getNewFactorsIndices())
         containers.forget(leaving)  # marginalized inside the update, with their factors
-        current = smoother.calculateEstimate()
-        containers.review(current, result.getMarkedKeys())
-        return current
+        return smoother.calculateEstimate()
 
     for i, (t, records, new) in enumerate(steps):
         now = t if np.isfinite(t) else (now if now is not None else 0.0)
