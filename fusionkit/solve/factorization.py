@@ -20,16 +20,14 @@ def linear_settings(settings: dict) -> tuple[bool, str]:
     return settings["factorization"] == "qr", settings["ordering"]
 
 
-def eliminate(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str = "colamd"):
-    """The multifrontal Bayes tree of `linear` (COLAMD or METIS ordering), by QR or Cholesky."""
-    if not qr and ordering == "colamd":
-        return linear.eliminateMultifrontal()
-    order = (gtsam.Ordering.MetisGaussianFactorGraph(linear) if ordering == "metis"
-             else gtsam.Ordering.ColamdGaussianFactorGraph(linear))
+def elimination_order(linear: gtsam.GaussianFactorGraph, ordering: str = "colamd") -> gtsam.Ordering:
+    """COLAMD's or METIS's elimination order of `linear`'s variables (what GTSAM computes by default)."""
+    return (gtsam.Ordering.MetisGaussianFactorGraph(linear) if ordering == "metis"
+            else gtsam.Ordering.ColamdGaussianFactorGraph(linear))
+
+
+def eliminate(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str | gtsam.Ordering = "colamd"):
+    """The multifrontal Bayes tree of `linear` by QR or Cholesky, in `ordering`: "colamd", "metis", or an
+    order already computed (an iterative solver's systems share one structure, so one order serves all)."""
+    order = elimination_order(linear, ordering) if isinstance(ordering, str) else ordering
     return linear.eliminateMultifrontal(order, gtsam.EliminateQR) if qr else linear.eliminateMultifrontal(order)
-
-
-def solve_linear(linear: gtsam.GaussianFactorGraph, qr: bool, ordering: str = "colamd") -> gtsam.VectorValues:
-    if not qr and ordering == "colamd":
-        return linear.optimize()
-    return eliminate(linear, qr, ordering).optimize()

@@ -25,7 +25,7 @@ from typing import Callable
 import gtsam
 import numpy as np
 
-from .factorization import solve_linear
+from .factorization import elimination_order, eliminate
 
 
 @dataclass
@@ -86,8 +86,10 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
     history = [cost]
     damper = Damping(values, damping) if damping else None
     lam = 0.0
+    order = None  # the systems of all iterations share one structure: one elimination order serves all
     for it in range(1, max_iterations + 1):
         linear, tree = first if it == 1 and first is not None else (graph.linearize(values), None)
+        order = order or elimination_order(linear, ordering)
         diagonal = None
         while True:
             if lam > 0 and diagonal is None:
@@ -96,7 +98,7 @@ def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values
                 if lam == 0 and tree is not None:  # the undamped system, already eliminated
                     delta = tree.optimize()
                 else:
-                    delta = solve_linear(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr, ordering)
+                    delta = eliminate(damper.damped(linear, diagonal, lam) if lam > 0 else linear, qr, order).optimize()
             except RuntimeError:  # an undamped system can be singular where the damped one is not
                 if not damper or lam > 0:
                     raise
