@@ -8,7 +8,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec
+from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec, vectorized_factor
 
 from .model import cable_robot
 from .pulley import pulley_cables
@@ -70,13 +70,15 @@ class CableLength(FactorType):
             pulley, offset = ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "offset", i)
             mount = attachment_offset(cdpr.attachments[i])
             z = stream.column(columns[i])[assoc.row]
-            for k, zk in zip(assoc.state, z):
-                if cdpr.pulley_radius > 0:  # the cable leaves a swivelling pulley of that radius (pulley.py)
-                    factor = elastic_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
-                                                  0.0, float(zk), noise, cdpr.pulley_radius, cdpr.swivel_axis)
-                else:
-                    factor = range_factor(ctx.pose_key(robot, int(k)), pulley, float(zk), noise, mount, offset)
-                ctx.add(factor, spec, ctx.state_time(robot, int(k)))
+            poses = [ctx.pose_key(robot, int(k)) for k in assoc.state]
+            times = [ctx.state_time(robot, int(k)) for k in assoc.state]
+            if cdpr.pulley_radius > 0:  # the cable leaves a swivelling pulley of that radius (pulley.py)
+                keys = [[pose, pulley, offset] for pose in poses]
+                add_cables(ctx, spec, cdpr, keys, [cdpr.attachments[i]] * len(keys), np.zeros(len(keys)), z,
+                           np.full(len(keys), spec["sigma"]), times)
+                continue
+            for pose, zk, t in zip(poses, z, times):
+                ctx.add(range_factor(pose, pulley, float(zk), noise, mount, offset), spec, t)
 
     def diagnose(self, ctx, spec: Spec) -> None:
         """Observability of each cable's pulley and offset from this trajectory (thesis eqs. 4.6-4.7)."""
@@ -102,18 +104,21 @@ class CableLength(FactorType):
         return FactorExample(elastic_cable_factor(0, 1, 2, b, 0.0, z, gaussian([0.001]), rho, axis), values)
 
 
-def _elastic_error(b: np.ndarray, stretch: float, z: float, rho: float, axis, this, v: gtsam.Values, H) -> np.ndarray:
-    k = this.keys()
-    return elastic_cable_residual(v.atPose3(k[0]), v.atPoint3(k[1]), v.atDouble(k[2]), b, stretch, z, H, rho, axis)
-
-
 def elastic_cable_factor(pose: int, pulley: int, offset: int, b, stretch: float, z: float, noise, rho: float = 0.0,
                          axis=None):
-    """e = (1 - stretch) l* + l0 - z (residuals.elastic_cable_residual); stretch 0 is a rigid cable, and with
+    """One factor e = (1 - stretch) l* + l0 - z (residuals.elastic_cables); stretch 0 is a rigid cable, and with
     a pulley radius `rho` the length runs over a pulley swivelling about `axis`."""
-    return gtsam.CustomFactor(noise, [pose, pulley, offset],
-                              partial(_elastic_error, np.asarray(b, float), float(stretch), float(z), float(rho),
-                                      None if axis is None else np.asarray(axis, float)))
+    data = {"attachment": np.asarray(b, float)[None], "stretch": np.array([stretch], float), "z": np.array([z], float)}
+    return vectorized_factor(elastic_cable_residual(rho, axis), noise, [pose, pulley, offset], data)
+
+
+def add_cables(ctx, spec: Spec, cdpr, keys, attachments, stretch, z, sigmas, times) -> None:
+    """Elastic-cable factors (rows: pose, pulley, offset keys; attachment b; stretch; z; sigma; time) in one
+    vectorized group."""
+    ctx.add_vectorized(elastic_cable_residual(cdpr.pulley_radius, cdpr.swivel_axis), np.asarray(keys).reshape(-1, 3),
+                       {"attachment": np.asarray(attachments, float).reshape(-1, 3),
+                        "stretch": np.asarray(stretch, float), "z": np.asarray(z, float)},
+                       np.asarray(sigmas, float).reshape(-1, 1), spec, times)
 
 
 class ElasticCableLength(FactorType):
@@ -157,20 +162,17 @@ class ElasticCableLength(FactorType):
         if without:
             ctx.notes.append(f"{spec.label}: {without} of {len(a_len.state)} length samples had no tension sample "
                              f"at their state and were not used")
+        pairs = [(int(k), row) for k, row in zip(a_len.state, a_len.row) if k in tension_row]
         for i in spec.get("cables", range(cdpr.n)):
             pulley, offset = ctx.parameter(robot, "pulley", i), ctx.parameter(robot, "offset", i)
             z_all, t_all = lengths.column(columns[i]), tensions.column(tcols[i])
-            for k, row in zip(a_len.state, a_len.row):
-                if k not in tension_row:
-                    continue
-                z = float(z_all[row])
-                stretch = float(t_all[tension_row[k]]) / cdpr.stiffness_EA
-                # tension noise enters through the length: d e / d T = -l*/EA, with l* ~ z - l0
-                sigma = np.hypot(spec["sigma"], (z - float(offsets[i])) / cdpr.stiffness_EA * spec["tension_sigma"])
-                factor = elastic_cable_factor(ctx.pose_key(robot, int(k)), pulley, offset, cdpr.attachments[i],
-                                              stretch, z, ctx.noise([sigma], spec), cdpr.pulley_radius,
-                                              cdpr.swivel_axis)
-                ctx.add(factor, spec, ctx.state_time(robot, int(k)))
+            z = np.array([z_all[row] for _, row in pairs], float)
+            stretch = np.array([t_all[tension_row[k]] for k, _ in pairs], float) / cdpr.stiffness_EA
+            # tension noise enters through the length: d e / d T = -l*/EA, with l* ~ z - l0
+            sigma = np.hypot(spec["sigma"], (z - float(offsets[i])) / cdpr.stiffness_EA * spec["tension_sigma"])
+            keys = [[ctx.pose_key(robot, k), pulley, offset] for k, _ in pairs]
+            add_cables(ctx, spec, cdpr, keys, [cdpr.attachments[i]] * len(keys), stretch, z, sigma,
+                       [ctx.state_time(robot, k) for k, _ in pairs])
 
     @classmethod
     def example(cls, rng):

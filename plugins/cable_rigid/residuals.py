@@ -2,35 +2,40 @@
 
 from __future__ import annotations
 
-import gtsam
+from functools import partial
+
 import numpy as np
 
-from fusionkit.api import body_point_range
+from fusionkit.api import POINT3, POSE3, SCALAR, VectorizedResidual
 
 from .pulley import pulley_cables
 
 
-def elastic_cable_residual(pose: gtsam.Pose3, pulley: np.ndarray, offset: float, b: np.ndarray,
-                           stretch: float, z: float, H: list | None = None, rho: float = 0.0,
-                           axis: np.ndarray | None = None) -> np.ndarray:
-    """Elastic cable (thesis eq. 4.2, docs/models/cable_rigid.md#elastic-cable):
-    e = (1 - T/EA) l* + l0 - z, with stretch = T/EA (measured tension over axial stiffness) and
+def elastic_cables(rho: float, axis, x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
+    """Elastic cables (thesis eq. 4.2, docs/models/cable_rigid.md#elastic-cable) for N factors:
+    e = (1 - T/EA) l* + l0 - z (m), stretch = T/EA (measured tension over axial stiffness),
     l* = ||R b + t - a||, or with a pulley radius `rho` > 0 the length over a pulley swivelling about
-    `axis` (pulley.py; its gradient in the attachment point is the free cable's direction n, in a it is -n).
-    Jacobians w.r.t. pose, pulley, offset."""
-    alpha = 1.0 - stretch
-    if rho > 0:
-        D = np.zeros((3, 6), order="F")
-        length, n = pulley_cables(pose.transformFrom(b, D), pulley, rho, axis)
-        length, J = float(length[0]), [(n[0] @ D).reshape(1, 6), -n[0].reshape(1, 3)]
-    else:
-        J = [None, None] if H is not None else None
-        length = body_point_range(pose, b, pulley, J)
-    if H is not None:
-        H[0] = alpha * J[0]
-        H[1] = alpha * J[1]
-        H[2] = np.ones((1, 1))
-    return np.array([alpha * length + offset - z])
+    `axis` (pulley.py; its gradient in the attachment point p = R b + t is the free cable's direction n,
+    in the pulley a it is -n). x = [poses (N, 4, 4), pulleys a (N, 3), offsets l0 (N,)]; data:
+    attachment b (N, 3), stretch (N,), z (N,). d e / d pose = (1 - stretch) [b x R^T n, R^T n]."""
+    pose, pulley, offset = x
+    b, alpha = data["attachment"], 1.0 - data["stretch"]
+    R = pose[:, :3, :3]
+    p = np.einsum("nij,nj->ni", R, b) + pose[:, :3, 3]
+    length, n = pulley_cables(p, pulley, rho, axis)
+    e = (alpha * length + offset - data["z"])[:, None]
+    if not jacobians:
+        return e
+    body = np.einsum("nji,nj->ni", R, n)  # the cable's direction in the body frame
+    d_pose = alpha[:, None, None] * np.concatenate([np.cross(b, body), body], axis=1)[:, None, :]
+    return e, [d_pose, (-alpha[:, None] * n)[:, None, :], np.ones((len(e), 1, 1))]
+
+
+def elastic_cable_residual(rho: float = 0.0, axis=None) -> VectorizedResidual:
+    """The elastic-cable residual of a robot whose pulleys have radius `rho` (0: none) about `axis`."""
+    axis = np.ones(3) if axis is None else np.asarray(axis, float)
+    return VectorizedResidual("cable.elastic_length", (POSE3, POINT3, SCALAR), 1,
+                              partial(elastic_cables, float(rho), axis))
 
 
 def plane_distance_residual(a0, a1, a2, ak, H: list | None = None) -> np.ndarray:
