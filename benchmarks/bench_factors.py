@@ -21,6 +21,8 @@ from fusionkit.api import vectorized_factor
 from fusionkit.graph.builder import FactorRecord
 from fusionkit.graph.evaluator import GraphEvaluator
 from fusionkit.graph.vectorized import VectorizedGroup
+from fusionkit_plugins.cable_rigid.factors import elastic_cable_factor
+from fusionkit_plugins.cable_rigid.residuals import elastic_cable_residual
 from fusionkit_plugins.pose.residuals import SCALED_BETWEEN
 
 from _timing import ratio, table, us
@@ -154,6 +156,47 @@ def check_same_math(values, meas, noise) -> float:
     return worst
 
 
+def elastic_cables(n: int, rounds: int) -> list[list[str]]:
+    """cable.elastic_length (1 row over pose, pulley, offset) vectorized and one at a time, against GTSAM's
+    native range+bias factor (the same length without the stretch) and the native BetweenFactorPose3:
+    median us per factor linearization."""
+    rng = np.random.default_rng(2)
+    values = gtsam.Values()
+    for i in range(n):
+        values.insert(i, gtsam.Pose3.Expmap(rng.normal(size=6) * 0.3))
+    values.insert(PULLEY_KEY, rng.normal(size=3) * 3)
+    values.insert(OFFSET_KEY, 0.5)
+    b = rng.normal(size=(n, 3)) * 0.2
+    z = rng.uniform(2, 4, n)
+    stretch = rng.uniform(0, 0.01, n)
+    keys = np.column_stack([np.arange(n), np.full(n, PULLEY_KEY), np.full(n, OFFSET_KEY)])
+    group = VectorizedGroup(elastic_cable_residual(), keys, {"attachment": b, "stretch": stretch, "z": z},
+                            np.full((n, 1), 0.001), None)
+    vectorized = GraphEvaluator([FactorRecord(None, "cable", 0.0, group, i) for i in range(n)])
+    noise = gaussian([0.001])
+    one_by_one, native, between = (gtsam.NonlinearFactorGraph() for _ in range(3))
+    for i in range(n):
+        one_by_one.add(elastic_cable_factor(i, PULLEY_KEY, OFFSET_KEY, b[i], stretch[i], z[i], noise))
+        native.add(gtsam.RangeFactorWithTransformBias3D(i, PULLEY_KEY, OFFSET_KEY, z[i], noise,
+                                                        gtsam.Pose3(gtsam.Rot3(), b[i])))
+        if i + 1 < n:
+            between.add(gtsam.BetweenFactorPose3(i, i + 1, gtsam.Pose3(), gaussian(SIGMAS)))
+    variants = {"vectorized": vectorized, "one at a time": one_by_one, "native range+bias": native,
+                "native BetweenFactorPose3": between}
+    samples: dict[str, list[float]] = {k: [] for k in variants}
+    for _ in range(rounds):
+        for name, graph in variants.items():
+            tic = time.perf_counter()
+            graph.linearize(values)
+            samples[name].append((time.perf_counter() - tic) / n)
+    med = {k: statistics.median(v) for k, v in samples.items()}
+    base = med["native BetweenFactorPose3"]
+    return [[name, us(med[name]), ratio(med[name], base)] for name in variants]
+
+
+PULLEY_KEY, OFFSET_KEY = 10**9 + 1, 10**9 + 2
+
+
 def inside_cpp(sizes=(250, 1000)) -> list[list[str]]:
     """us per fusionkit CustomFactor linearization when GTSAM's C++ code makes the call (one
     GaussNewtonOptimizer iteration) vs graph.linearize from Python, for growing graphs: pybind11
@@ -218,6 +261,9 @@ def run(quick: bool = False) -> dict:
     text = table(["factor (3-key scaled relative pose; native has 2 keys)", "lin us/f", "err us/f",
                   "lin/native", "err/native", "lin/hand", "err/hand"], rows,
                  f"(a) factor evaluation cost: {n} factors, median of {rounds} interleaved rounds")
+    text += "\n\n" + table(["cable.elastic_length (1 row; pose, pulley, offset)", "lin us/f", "lin/native Between"],
+                            elastic_cables(n, rounds),
+                            f"(a3) the elastic cable: {n} factors, median of {rounds} rounds")
     text += "\n\n" + table(["factors (= variables)", "graph.linearize from Python us/f",
                              "GaussNewton iterate (C++ calls) us/f", "C++/Python"], inside_cpp(),
                             "(a2) fusionkit CustomFactor called from C++: Values copied into every call")
