@@ -16,7 +16,9 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE_SIGMA_SCHEMA, differential_drive_twist, FactorExample, FactorType,
-                           gaussian, held_intervals, pose_sigmas, Spec, unicycle_increment)
+                           gaussian, held_intervals, pose_sigmas, Spec, unicycle_increment, vectorized_factor)
+
+from .residuals import CONSTANT_VELOCITY
 
 SIGMA = {"type": "number", "exclusiveMinimum": 0}
 NAME = {"type": "string"}
@@ -165,23 +167,6 @@ class IncrementOdometry(FactorType):
         return FactorExample(factor, values)
 
 
-def _constant_velocity_error(dt1: float, dt2: float, planar: bool, this, v: gtsam.Values, H):
-    k = this.keys()
-    cls = gtsam.Pose2 if planar else gtsam.Pose3
-    at = v.atPose2 if planar else v.atPose3
-    x0, x1, x2 = at(k[0]), at(k[1]), at(k[2])
-    d = 3 if planar else 6
-    A0, A1, B1, B2 = (np.zeros((d, d), order="F") for _ in range(4))
-    L1, L2 = np.zeros((d, d), order="F"), np.zeros((d, d), order="F")
-    xi1 = cls.Logmap(x0.between(x1, A0, A1), L1)
-    xi2 = cls.Logmap(x1.between(x2, B1, B2), L2)
-    if H is not None:
-        H[0] = L1 @ A0 / dt1
-        H[1] = L1 @ A1 / dt1 - L2 @ B1 / dt2
-        H[2] = -L2 @ B2 / dt2
-    return xi1 / dt1 - xi2 / dt2
-
-
 class ConstantVelocity(FactorType):
     name = "motion.constant_velocity"
     summary = ("constant-velocity prior between ranging epochs: the body-frame twist of consecutive intervals "
@@ -201,25 +186,29 @@ class ConstantVelocity(FactorType):
         states = ctx.state_set(robot, spec)
         planar = states.family.vartype is POSE2
         sig = pose_sigmas(spec["sigma"], planar)
-        for k in range(1, len(states) - 1):
-            dt1, dt2 = float(states.t[k] - states.t[k - 1]), float(states.t[k + 1] - states.t[k])
-            root = np.sqrt(0.5 * (dt1 + dt2))
-            keys = [ctx.pose_key(robot, k - 1), ctx.pose_key(robot, k), ctx.pose_key(robot, k + 1)]
-            factor = gtsam.CustomFactor(ctx.noise(sig * root, spec), keys,
-                                        partial(_constant_velocity_error, dt1, dt2, planar))
-            ctx.add(factor, spec, float(states.t[k + 1]))
+        t = np.asarray(states.t, float)
+        if len(t) < 3:
+            return
+        dt1, dt2 = np.diff(t)[:-1], np.diff(t)[1:]
+        poses = [ctx.pose_key(robot, k) for k in range(len(t))]
+        keys = np.column_stack([poses[:-2], poses[1:-1], poses[2:]])
+        ctx.add_vectorized(CONSTANT_VELOCITY[planar], keys, {"dt1": dt1, "dt2": dt2},
+                           sig[None, :] * np.sqrt(0.5 * (dt1 + dt2))[:, None], spec, t[2:])
 
     @classmethod
     def example(cls, rng):
-        x0 = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3))
-        twist = rng.normal(size=6) * 0.5
+        planar = bool(rng.random() < 0.5)
+        cls_, d = (gtsam.Pose2, 3) if planar else (gtsam.Pose3, 6)
+        x0 = cls_.Expmap(rng.normal(size=d))
+        twist = rng.normal(size=d) * 0.5
         dt1, dt2 = 0.1, 0.15
-        x1 = x0.compose(gtsam.Pose3.Expmap(twist * dt1))
-        x2 = x1.compose(gtsam.Pose3.Expmap(twist * dt2))
+        x1 = x0.compose(cls_.Expmap(twist * dt1))
+        x2 = x1.compose(cls_.Expmap(twist * dt2))
         values = gtsam.Values()
         for i, x in enumerate((x0, x1, x2)):
             values.insert(i, x)
-        factor = gtsam.CustomFactor(gaussian([0.1] * 6), [0, 1, 2], partial(_constant_velocity_error, dt1, dt2, False))
+        factor = vectorized_factor(CONSTANT_VELOCITY[planar], gaussian([0.1] * d), [0, 1, 2],
+                                   {"dt1": np.array([dt1]), "dt2": np.array([dt2])})
         return FactorExample(factor, values)
 
 

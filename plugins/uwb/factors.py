@@ -17,9 +17,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec
+from fusionkit.api import (POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor,
+                           Spec, vectorized_factor)
 
-from .residuals import scaled_range_residual, tag_to_tag_residual
+from .residuals import TAG_RANGES, scaled_range_residual
 
 SIGMA = {"type": "number", "exclusiveMinimum": 0}
 NAME = {"type": "string"}
@@ -66,15 +67,10 @@ def scaled_range_factor(pose: int, anchor: int, bias: int | None, scale: int | N
                                                    bias is not None, scale is not None, planar, planar_anchor))
 
 
-def _tag_error(b_a, b_b, z, planar: bool, this, v: gtsam.Values, H):
-    k = this.keys()
-    at = v.atPose2 if planar else v.atPose3
-    return tag_to_tag_residual(at(k[0]), at(k[1]), b_a, b_b, z, H)
-
-
 def tag_range_factor(a: int, b: int, b_a, b_b, z: float, noise, planar: bool):
-    return gtsam.CustomFactor(noise, [a, b], partial(_tag_error, np.asarray(b_a, float), np.asarray(b_b, float),
-                                                     float(z), planar))
+    """One tag-to-tag range factor (residuals.tag_ranges)."""
+    data = {"tag_a": np.asarray(b_a, float)[None], "tag_b": np.asarray(b_b, float)[None], "z": np.array([z], float)}
+    return vectorized_factor(TAG_RANGES[planar], noise, [a, b], data)
 
 
 def _range_rows(stream, spec: Spec, n: int):
@@ -252,22 +248,30 @@ class UwbTagRange(FactorType):
         assoc_a, assoc_b = ctx.associate(stream, a, spec), ctx.associate(stream, b, spec)
         state_b = dict(zip(assoc_b.row, assoc_b.state))
         z = stream.column(spec["column"])
-        noise = ctx.noise([spec["sigma"]], spec)
-        for row, ka in zip(assoc_a.row, assoc_a.state):
-            if row in state_b:
-                kb = int(state_b[row])
-                factor = tag_range_factor(ctx.pose_key(a, int(ka)), ctx.pose_key(b, kb), b_a, b_b, z[row], noise, planar)
-                ctx.add(factor, spec, max(ctx.state_time(a, int(ka)), ctx.state_time(b, kb)))
+        pairs = [(int(ka), int(state_b[row]), row) for row, ka in zip(assoc_a.row, assoc_a.state) if row in state_b]
+        keys = [[ctx.pose_key(a, ka), ctx.pose_key(b, kb)] for ka, kb, _ in pairs]
+        n = len(pairs)
+        ctx.add_vectorized(TAG_RANGES[planar], np.asarray(keys, dtype=np.int64).reshape(n, 2),
+                           {"tag_a": np.tile(b_a, (n, 1)), "tag_b": np.tile(b_b, (n, 1)),
+                            "z": np.array([z[row] for _, _, row in pairs], float)},
+                           [spec["sigma"]], spec,
+                           [max(ctx.state_time(a, ka), ctx.state_time(b, kb)) for ka, kb, _ in pairs])
 
     @classmethod
     def example(cls, rng):
-        pa, pb = (gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3) * 3) for _ in range(2))
+        planar = bool(rng.random() < 0.5)
         b_a, b_b = rng.normal(size=3) * 0.2, rng.normal(size=3) * 0.2
-        z = float(np.linalg.norm(pa.transformFrom(b_a) - pb.transformFrom(b_b)))
+        if planar:
+            pa, pb = (gtsam.Pose2(*rng.normal(size=2) * 3, rng.uniform(-3, 3)) for _ in range(2))
+            position = lambda p, b: np.r_[p.transformFrom(b[:2]), b[2]]  # noqa: E731
+        else:
+            pa, pb = (gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3) * 3) for _ in range(2))
+            position = lambda p, b: p.transformFrom(b)  # noqa: E731
+        z = float(np.linalg.norm(position(pa, b_a) - position(pb, b_b)))
         values = gtsam.Values()
         values.insert(0, pa)
         values.insert(1, pb)
-        return FactorExample(tag_range_factor(0, 1, b_a, b_b, z, gaussian([0.05]), planar=False), values)
+        return FactorExample(tag_range_factor(0, 1, b_a, b_b, z, gaussian([0.05]), planar), values)
 
 
 FACTOR_TYPES = [UwbRange, UwbTagRange]

@@ -10,6 +10,8 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
+from fusionkit.api import POSE2, POSE3, VectorizedResidual, lie
+
 J90 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
@@ -31,6 +33,44 @@ def tag_position(pose, b: np.ndarray, H: list | None = None) -> np.ndarray:
     return p
 
 
+def tag_positions(pose: np.ndarray, b: np.ndarray, jacobians: bool):
+    """tag_position for N poses in array form, Pose3 (N, 4, 4) or Pose2 (N, 3), tags b (N, 3): positions
+    (N, 3) and, with `jacobians`, dp/dpose (N, 3, 6 or 3)."""
+    if pose.ndim == 3:
+        R = pose[:, :3, :3]
+        p = np.einsum("nij,nj->ni", R, b) + pose[:, :3, 3]
+        if not jacobians:
+            return p, None
+        return p, np.concatenate([-R @ lie.skew(b), R], axis=2)
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    R = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)  # (N, 2, 2)
+    p = np.column_stack([np.einsum("nij,nj->ni", R, b[:, :2]) + pose[:, :2], b[:, 2]])
+    if not jacobians:
+        return p, None
+    D = np.zeros((len(pose), 3, 3))
+    D[:, :2, :2] = R
+    D[:, :2, 2] = np.einsum("nij,nj->ni", R @ J90, b[:, :2])
+    return p, D
+
+
+def tag_ranges(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
+    """e = ||p_a - p_b|| - z: ranges between tags on two robots (m), N at once; x = [poses a, poses b]
+    (both Pose3 or both Pose2 in array form); data: tag a (N, 3), tag b (N, 3), z (N,)."""
+    pa, Ha = tag_positions(x[0], data["tag_a"], jacobians)
+    pb, Hb = tag_positions(x[1], data["tag_b"], jacobians)
+    d = pa - pb
+    r = np.linalg.norm(d, axis=1)
+    e = (r - data["z"])[:, None]
+    if not jacobians:
+        return e
+    u = d / np.where(r > 0, r, 1.0)[:, None]
+    return e, [np.einsum("ni,nij->nj", u, Ha)[:, None, :], -np.einsum("ni,nij->nj", u, Hb)[:, None, :]]
+
+
+TAG_RANGES = {False: VectorizedResidual("uwb.tag_range", (POSE3, POSE3), 1, tag_ranges),
+              True: VectorizedResidual("uwb.tag_range", (POSE2, POSE2), 1, tag_ranges)}  # by planar
+
+
 def scaled_range_residual(pose, anchor: np.ndarray, bias: float, alpha: float, b: np.ndarray, z: float,
                           H: list | None = None) -> np.ndarray:
     """e = (1 + alpha) ||p_tag - a|| + bias - z (m): UWB two-way range with a distance-proportional
@@ -50,14 +90,3 @@ def scaled_range_residual(pose, anchor: np.ndarray, bias: float, alpha: float, b
     return np.array([(1 + alpha) * r + bias - z])
 
 
-def tag_to_tag_residual(pose_a, pose_b, b_a: np.ndarray, b_b: np.ndarray, z: float,
-                        H: list | None = None) -> np.ndarray:
-    """e = ||p_a - p_b|| - z: the range between tags on two robots (m); Jacobians w.r.t. both poses."""
-    Ha, Hb = ([None], [None]) if H is not None else (None, None)
-    d = tag_position(pose_a, b_a, Ha) - tag_position(pose_b, b_b, Hb)
-    r = float(np.sqrt(d @ d))
-    if H is not None:
-        u = d / r if r > 0 else np.zeros(3)
-        H[0] = (u @ Ha[0]).reshape(1, -1)
-        H[1] = (-u @ Hb[0]).reshape(1, -1)
-    return np.array([r - z])
