@@ -43,6 +43,7 @@ class LinearContainers:
         self.vartype_of = vartype_of  # key -> VarType
         self.slot: dict[int, tuple[object, int]] = {}  # solver factor index -> (group, row)
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
+        self._dims: dict[int, int] = {}
 
     @staticmethod
     def vectorized(record) -> bool:
@@ -51,8 +52,18 @@ class LinearContainers:
     def relinearizing(self, delta: gtsam.VectorValues) -> set[int]:
         """The variables with tracked factors that the solver's next update relinearizes (iSAM2's test on
         the current step: largest component >= threshold)."""
-        return {k for k in self.on_key if self.on_key[k] and delta.exists(k)
-                and np.max(np.abs(delta.at(k))) >= self.threshold}
+        keys = [k for k, on in self.on_key.items() if on]
+        if not keys:
+            return set()
+        dims = np.array([self.dim(k) for k in keys])
+        step = np.abs(np.asarray(delta.vector(keys), dtype=float).ravel())  # the keys' steps, in their order
+        largest = np.maximum.reduceat(step, np.concatenate([[0], np.cumsum(dims)[:-1]]))
+        return {k for k, m in zip(keys, largest) if m >= self.threshold}
+
+    def dim(self, key: int) -> int:
+        if key not in self._dims:
+            self._dims[key] = self.vartype_of(key).dim
+        return self._dims[key]
 
     def step(self, records, solver, new_values: gtsam.Values) -> Step:
         """The next update of `solver` (gtsam.ISAM2 or IncrementalFixedLagSmoother): `records`' plain factors
