@@ -21,7 +21,7 @@ from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, with_kernel
 from .variables import VarType, vartype_named
 from .evaluator import GraphEvaluator
-from .vectorized import VectorizedGroup, VectorizedResidual, instance_factor
+from .vectorized import InstanceCache, VectorizedGroup, VectorizedResidual
 
 STATIC_TIME = float("-inf")
 FIXED_SIGMA = 1e-9  # prior sigma (per tangent axis, SI units) that holds a `fixed: true` parameter
@@ -325,10 +325,10 @@ class BuildContext:
             probe = self.noise(sigma_rows[0], spec)
             kernel = probe.robust() if isinstance(probe, gtsam.noiseModel.Robust) else None
         group = VectorizedGroup(residual, keys, data, sigma_rows, kernel)
+        instances = InstanceCache(residual, keys, data)
         for i in range(n):
             noise = shared if shared is not None else self.noise(sigma_rows[i], spec)
-            factor = instance_factor(residual, noise, keys[i], {name: v[i:i + 1] for name, v in data.items()})
-            self.records.append(FactorRecord(factor, spec.label, times[i], group, i))
+            self.records.append(FactorRecord(instances.factor(i, noise), spec.label, times[i], group, i))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))

@@ -149,21 +149,55 @@ def _slice(data: dict[str, np.ndarray], i: int) -> dict[str, np.ndarray]:
     return {name: array[i:i + 1] for name, array in data.items()}
 
 
+class InstanceCache:
+    """Serves N factors of one residual that GTSAM's own solvers (Dogleg, gtsam.Marginals, GTSAM's
+    optimizers) call one at a time as CustomFactors: the first call at new values evaluates all N at once
+    (when the values hold all their variables) and keeps the results with the variables they hold for;
+    every other factor called at the same values finds its row there. A factor whose variables differ
+    from the kept ones, with values lacking some of the N factors' variables, is evaluated alone (N = 1),
+    as is a lone factor (reading all N at once extracts every pose of the values)."""
+
+    def __init__(self, residual: VectorizedResidual, keys: np.ndarray, data: dict[str, np.ndarray]):
+        self.residual, self.keys, self.data = residual, keys, data
+        self.unique_keys = [int(k) for k in np.unique(keys)]
+        self.held: list[np.ndarray] | None = None  # the variables (N, ...) of the kept results
+        self.r = self.jacobians = None
+
+    def factor(self, row: int, noise: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
+        """Factor `row` as a gtsam.CustomFactor."""
+        dims = [t.dim for t in self.residual.variables]
+
+        def error(this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
+            r, jac = self.evaluate(row, v, H is not None)
+            for j, block in enumerate(jac or ()):
+                H[j] = np.asarray(block, dtype=float).reshape(self.residual.dim, dims[j])
+            return r
+
+        return gtsam.CustomFactor(noise, [int(k) for k in self.keys[row]], error)
+
+    def evaluate(self, row: int, values: gtsam.Values, jacobians: bool):
+        """(residual (dim,), [Jacobian blocks] or None) of factor `row` at `values`."""
+        types = self.residual.variables
+        x = [_one(t, t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
+        if len(self.keys) > 1 and not self._holds(row, x) and all(values.exists(k) for k in self.unique_keys):
+            reader = ValueReader(values)
+            self.held = [reader.read(t, self.keys[:, j]) for j, t in enumerate(types)]
+            r, jac = self.residual.evaluate(self.held, self.data, True)
+            self.r, self.jacobians = np.asarray(r, dtype=float).reshape(len(self.keys), -1), jac
+        if self._holds(row, x):
+            return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
+        alone = self.residual.evaluate(x, {k: v[row:row + 1] for k, v in self.data.items()}, jacobians)
+        r, jac = alone if jacobians else (alone, None)
+        return np.asarray(r, dtype=float)[0], ([J[0] for J in jac] if jacobians else None)
+
+    def _holds(self, row: int, x: list[np.ndarray]) -> bool:
+        return self.held is not None and all(np.array_equal(h[row], xi[0]) for h, xi in zip(self.held, x))
+
+
 def instance_factor(residual: VectorizedResidual, noise: gtsam.noiseModel.Base, keys, data_i: dict[str, np.ndarray]
                     ) -> gtsam.CustomFactor:
-    """One instance as a gtsam.CustomFactor: the same function at N = 1 (`data_i` arrays of length 1)."""
-    types = residual.variables
-
-    def error(this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
-        x = [_one(t, t.read(v, k))[None] for t, k in zip(types, this.keys())]
-        if H is None:
-            return np.asarray(residual.evaluate(x, data_i, False), dtype=float)[0]
-        r, jac = residual.evaluate(x, data_i, True)
-        for j, block in enumerate(jac):
-            H[j] = np.asarray(block[0], dtype=float).reshape(residual.dim, types[j].dim)
-        return np.asarray(r, dtype=float)[0]
-
-    return gtsam.CustomFactor(noise, [int(k) for k in keys], error)
+    """One factor as a gtsam.CustomFactor: the function at N = 1 (`data_i` arrays of length 1)."""
+    return InstanceCache(residual, np.asarray([keys], dtype=np.int64), data_i).factor(0, noise)
 
 
 # --- many instances: whitening, kernels, linear factors -----------------------------------------------

@@ -13,7 +13,7 @@ from fusionkit.api import POINT3, POSE2, POSE3, ROT3, SCALAR, VectorizedResidual
 from fusionkit.graph.builder import FactorRecord
 from fusionkit.graph.evaluator import GraphEvaluator
 from fusionkit.graph.noise import KERNELS
-from fusionkit.graph.vectorized import ValueReader, VectorizedGroup, instance_factor
+from fusionkit.graph.vectorized import InstanceCache, ValueReader, VectorizedGroup, instance_factor
 from fusionkit.solve.levenberg import DampingSettings, levenberg_marquardt
 from fusionkit_plugins.pose.residuals import SCALED_BETWEEN
 
@@ -144,3 +144,27 @@ def test_rotation_log_is_gtsams_logmap_up_to_pi():
     inside = angles < 3.0
     reference = np.array([gtsam.Rot3.Logmap(gtsam.Rot3(r)) for r in R[inside]])
     assert np.abs(ours[inside] - reference).max() < 1e-12
+
+
+def test_instance_cache_serves_each_factor_at_the_values_it_is_called_with():
+    """Factors made for GTSAM's own callers share one evaluation per set of values: at the start values, at
+    moved values, and with values holding only one factor's variables (evaluated alone), each factor's
+    linearization is that of a lone factor at the same values."""
+    values, keys, data, sigmas = _chain(np.random.default_rng(6))
+    noise = [gtsam.noiseModel.Diagonal.Sigmas(s) for s in sigmas]
+    cache = InstanceCache(SCALED_BETWEEN, keys, data)
+    shared = [cache.factor(i, noise[i]) for i in range(N)]
+    alone = [instance_factor(SCALED_BETWEEN, noise[i], keys[i], {k: v[i:i + 1] for k, v in data.items()})
+             for i in range(N)]
+    step = gtsam.VectorValues()
+    for k in values.keys():
+        step.insert(k, 0.01 * np.ones(values.zeroVectors().at(k).shape[0]))
+    for at in (values, values.retract(step), values):
+        for a, b in zip(shared, alone):
+            assert np.abs(a.linearize(at).augmentedJacobian() - b.linearize(at).augmentedJacobian()).max() < 1e-12
+            assert a.error(at) == pytest.approx(b.error(at), rel=1e-12)
+    few = gtsam.Values()
+    for k in keys[3]:
+        few.insert(int(k), values.atPose3(int(k)) if k != SCALE_KEY else values.atDouble(SCALE_KEY) + 0.2)
+    assert np.abs(shared[3].linearize(few).augmentedJacobian()
+                  - alone[3].linearize(few).augmentedJacobian()).max() < 1e-12
