@@ -23,6 +23,7 @@ import gtsam
 import numpy as np
 
 from .. import lie
+from ..errors import SolverError
 from .variables import VarType
 
 Function = Callable[[list[np.ndarray], dict[str, np.ndarray], bool], Any]
@@ -123,13 +124,19 @@ class VectorizedResidual:
             raise ValueError(f"{self.name}: jacobians must be 'analytic' or 'numerical', not {self.jacobians!r}")
 
     def evaluate(self, x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
-        """Residuals (N, dim), or (residuals, Jacobians) with `jacobians`."""
-        if self.jacobians == "analytic":
-            return self.function(x, data, jacobians)
-        r = self.function(x, data, False)
-        if not jacobians:
-            return r
-        return r, [self._numerical(x, data, j) for j in range(len(x))]
+        """Residuals (N, dim), or (residuals, Jacobians) with `jacobians`. A function that raises ValueError
+        (variables outside the model's domain, e.g. a cable attachment inside its pulley's circle) stops the
+        solve with a SolverError naming the residual."""
+        try:
+            if self.jacobians == "analytic":
+                return self.function(x, data, jacobians)
+            r = self.function(x, data, False)
+            if not jacobians:
+                return r
+            return r, [self._numerical(x, data, j) for j in range(len(x))]
+        except ValueError as exc:
+            raise SolverError(f"{self.name}: {exc}: the estimate left the model's domain (check the initial "
+                              "values and the sigmas)") from None
 
     def _numerical(self, x: list[np.ndarray], data: dict[str, np.ndarray], j: int) -> np.ndarray:
         vartype = self.variables[j]

@@ -168,3 +168,16 @@ def test_instance_cache_serves_each_factor_at_the_values_it_is_called_with():
         few.insert(int(k), values.atPose3(int(k)) if k != SCALE_KEY else values.atDouble(SCALE_KEY) + 0.2)
     assert np.abs(shared[3].linearize(few).augmentedJacobian()
                   - alone[3].linearize(few).augmentedJacobian()).max() < 1e-12
+
+
+def test_a_residual_outside_its_domain_stops_the_solve_with_a_solver_error_naming_it():
+    from fusionkit.errors import SolverError
+
+    def outside(x, data, jacobians):
+        raise ValueError("an attachment point lies inside a pulley's circle")
+    residual = VectorizedResidual("test.domain", (POSE3, POSE3, SCALAR), 6, outside)
+    values, keys, data, sigmas = _chain(np.random.default_rng(7))
+    group = VectorizedGroup(residual, keys, data, sigmas, None)
+    with pytest.raises(SolverError, match=r"^test\.domain: an attachment point lies inside a pulley's circle: "
+                                          r"the estimate left the model's domain"):
+        group.linear_factors(ValueReader(values))
