@@ -65,7 +65,7 @@ CONFIG_SCHEMA = {
                 "type": {"enum": ["batch", "isam2", "fixed_lag"], "default": "batch"},
                 "method": {"enum": ["lm", "gn", "dogleg"], "default": "lm"},
                 "factorization": {"enum": ["cholesky", "qr"]},  # default by type: SOLVER_TYPE_DEFAULTS
-                "ordering": {"enum": ["colamd", "metis"], "default": "colamd"},
+                "ordering": {"enum": ["auto", "colamd", "metis"], "default": "auto"},
                 "max_iterations": {"type": "integer", "minimum": 1, "default": 100},
                 "relative_tolerance": {**POSITIVE, "default": 1e-6},
                 "absolute_tolerance": {**POSITIVE, "default": 1e-9},

@@ -31,6 +31,18 @@ class GraphEvaluator:
                 self.plain_rows.append(i)
         self.groups = [(group.subset(np.asarray(rows)), np.asarray(indices)) for group, rows, indices in members.values()]
 
+    def largest_degree(self) -> int:
+        """The most factors any one variable is in."""
+        counts: dict[int, int] = {}
+        for i in self.plain_rows:
+            for k in self.records[i].factor.keys():
+                counts[k] = counts.get(k, 0) + 1
+        for group, _ in self.groups:
+            keys, n = np.unique(group.keys, return_counts=True)  # a key twice in one factor counts twice
+            for k, c in zip(keys.tolist(), n.tolist()):
+                counts[k] = counts.get(k, 0) + c
+        return max(counts.values(), default=0)
+
     def linearize(self, values: gtsam.Values) -> gtsam.GaussianFactorGraph:
         linear = self.plain.linearize(values)
         reader = ValueReader(values)

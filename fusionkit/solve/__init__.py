@@ -9,7 +9,7 @@ from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
 from .covariance_recovery import recovered_marginals
-from .factorization import linear_settings
+from .factorization import linear_settings, resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
 from .marginals import tree_marginals
 from .result import SolveResult
@@ -22,6 +22,8 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`.
     `settings`: the `solver:` section with its defaults (config.loader.solver_settings)."""
     kind = settings["type"]
+    if kind == "batch":
+        settings = {**settings, "ordering": resolved_ordering(settings["ordering"], problem.evaluator().largest_degree())}
     if progress:
         progress.stage(f"solving ({kind})")
     if kind == "batch":

@@ -206,7 +206,7 @@ def test_scaled_vo_loads_with_overrides_applied():
                                       "factors[1].sigma.translation=2e-2"])
     assert config.name == "scaled_vo_mocap" and config.seed == 0
     # the solver section with its defaults: the schema's, then iSAM2's factorization and chi-square gate
-    assert config.solver == {"type": "isam2", "method": "lm", "ordering": "colamd", "max_iterations": 100,
+    assert config.solver == {"type": "isam2", "method": "lm", "ordering": "auto", "max_iterations": 100,
                              "relative_tolerance": 1e-6, "absolute_tolerance": 1e-9, "lag": 2.0, "warmup": 0,
                              "relinearize_threshold": 0.01, "marginals": True, "a_posteriori_sigmas": False,
                              "factorization": "qr", "max_cost_ratio": 10.0}

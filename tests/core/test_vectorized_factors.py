@@ -181,3 +181,16 @@ def test_a_residual_outside_its_domain_stops_the_solve_with_a_solver_error_namin
     with pytest.raises(SolverError, match=r"^test\.domain: an attachment point lies inside a pulley's circle: "
                                           r"the estimate left the model's domain"):
         group.linear_factors(ValueReader(values))
+
+
+def test_auto_ordering_takes_metis_when_a_variable_is_in_more_than_2000_factors():
+    from fusionkit.solve.factorization import METIS_DEGREE, resolved_ordering
+    values, keys, data, sigmas = _chain(np.random.default_rng(8))
+    group = VectorizedGroup(SCALED_BETWEEN, keys, data, sigmas, None)
+    records = [FactorRecord(None, "vo", 0.0, group, i) for i in range(N)]
+    records.append(FactorRecord(gtsam.PriorFactorDouble(SCALE_KEY, 1.5, gtsam.noiseModel.Isotropic.Sigma(1, 0.1)),
+                                "scale", -np.inf))
+    assert GraphEvaluator(records).largest_degree() == N + 1  # the scale: every VO factor and its prior
+    assert METIS_DEGREE == 2000
+    assert resolved_ordering("auto", 2001) == "metis" and resolved_ordering("auto", 2000) == "colamd"
+    assert resolved_ordering("colamd", 10**6) == "colamd" and resolved_ordering("metis", 1) == "metis"
