@@ -11,6 +11,11 @@ from .vectorized import ValueReader, VectorizedGroup
 MAX_VECTORIZED_VARIABLES = 3  # GTSAM's Python bindings build Jacobian factors of at most three blocks
 
 
+def in_group(record) -> bool:
+    """Whether fusionkit linearizes this record's factor with its group (else through gtsam, alone)."""
+    return record.group is not None and len(record.group.residual.variables) <= MAX_VECTORIZED_VARIABLES
+
+
 class GraphEvaluator:
     """`linearize(values)` and `error(values)` of a list of FactorRecords, as a NonlinearFactorGraph of
     the same factors gives them (equal to rounding; the linear factors come in another order), and
@@ -22,7 +27,7 @@ class GraphEvaluator:
         self.plain_rows: list[int] = []  # record index of each plain factor
         members: dict[int, tuple[VectorizedGroup, list[int], list[int]]] = {}
         for i, r in enumerate(records):
-            if r.group is not None and len(r.group.residual.variables) <= MAX_VECTORIZED_VARIABLES:
+            if in_group(r):
                 entry = members.setdefault(id(r.group), (r.group, [], []))
                 entry[1].append(r.row)
                 entry[2].append(i)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from ..graph.evaluator import MAX_VECTORIZED_VARIABLES
+from ..graph.evaluator import in_group
 from ..graph.vectorized import ValueReader
 
 
@@ -44,10 +44,6 @@ class LinearContainers:
         self.slot: dict[int, tuple[object, int]] = {}  # solver factor index -> (group, row)
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
         self._dims: dict[int, int] = {}
-
-    @staticmethod
-    def vectorized(record) -> bool:
-        return record.group is not None and len(record.group.residual.variables) <= MAX_VECTORIZED_VARIABLES
 
     def relinearizing(self, delta: gtsam.VectorValues) -> set[int]:
         """The variables with tracked factors that the solver's next update relinearizes (iSAM2's test on
@@ -81,7 +77,7 @@ class LinearContainers:
             out.remove.append(index)
             grouped.append((g, row))
         for r in records:
-            if self.vectorized(r):
+            if in_group(r):
                 grouped.append((r.group, r.row))
             else:
                 out.graph.add(r.factor)
