@@ -193,7 +193,7 @@ class InstanceCache:
             self.r, self.jacobians = np.asarray(r, dtype=float).reshape(len(self.keys), -1), jac
         if self._holds(row, x):
             return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
-        alone = self.residual.evaluate(x, {k: v[row:row + 1] for k, v in self.data.items()}, jacobians)
+        alone = self.residual.evaluate(x, _slice(self.data, row), jacobians)
         r, jac = alone if jacobians else (alone, None)
         return np.asarray(r, dtype=float)[0], ([J[0] for J in jac] if jacobians else None)
 
