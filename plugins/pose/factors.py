@@ -4,15 +4,14 @@ random walk that chains a time-varying parameter."""
 
 from __future__ import annotations
 
-from functools import partial
-
 import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
-                           FactorType, gaussian, vectorized_factor, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec)
+                           FactorType, gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec,
+                           vectorized_factor)
 
-from .residuals import SCALED_BETWEEN, co_registration_residual
+from .residuals import CO_REGISTRATION, SCALED_BETWEEN
 
 SIGMA = POSE_SIGMA_SCHEMA
 
@@ -226,13 +225,9 @@ class ScaledRelativePose(FactorType):
         return FactorExample(factor, values)
 
 
-def _co_reg_error(z: gtsam.Pose3, this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
-    k = this.keys()
-    return co_registration_residual(v.atPose3(k[0]), v.atPose3(k[1]), v.atPose3(k[2]), z, H)
-
-
 def co_registration_factor(xa: int, base: int, xb: int, z: gtsam.Pose3, noise) -> gtsam.CustomFactor:
-    return gtsam.CustomFactor(noise, [xa, base, xb], partial(_co_reg_error, z))
+    """One co-registration factor (residuals.co_registrations)."""
+    return vectorized_factor(CO_REGISTRATION, noise, [xa, base, xb], {"z": z.matrix()[None]})
 
 
 BASE_TRANSFORM = "base_in_{robot}"
@@ -267,11 +262,11 @@ class CoRegistration(FactorType):
         kb = dict(zip(assoc_b.row, assoc_b.state))
         prior = pose_sigmas(spec["base_sigma"], False) if "base_sigma" in spec.data else None
         base = ctx.static_variable(b, BASE_TRANSFORM.format(robot=a), POSE3, gtsam.Pose3(), prior)
-        noise = ctx.noise(pose_sigmas(spec["sigma"], False), spec)
-        for row, z in zip(rows, poses_from_array(stream.pose_array()[rows])):
-            xa, xb = ctx.pose_key(a, int(ka[row])), ctx.pose_key(b, int(kb[row]))
-            time = max(ctx.state_time(a, int(ka[row])), ctx.state_time(b, int(kb[row])))
-            ctx.add(co_registration_factor(xa, base, xb, z, noise), spec, time)
+        z = np.array([p.matrix() for p in poses_from_array(stream.pose_array()[rows])]).reshape(-1, 4, 4)
+        keys = [[ctx.pose_key(a, int(ka[row])), base, ctx.pose_key(b, int(kb[row]))] for row in rows]
+        times = [max(ctx.state_time(a, int(ka[row])), ctx.state_time(b, int(kb[row]))) for row in rows]
+        ctx.add_vectorized(CO_REGISTRATION, np.asarray(keys, dtype=np.int64).reshape(-1, 3), {"z": z},
+                           pose_sigmas(spec["sigma"], False), spec, times)
 
     @classmethod
     def example(cls, rng):

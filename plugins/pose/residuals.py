@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gtsam
 import numpy as np
 
 from fusionkit.api import POSE2, POSE3, SCALAR, VectorizedResidual, lie
@@ -71,22 +70,18 @@ CONSTANT_VELOCITY = {False: VectorizedResidual("motion.constant_velocity", (POSE
                                               jacobians="numerical")}  # by planar
 
 
-def co_registration_residual(xa: gtsam.Pose3, base: gtsam.Pose3, xb: gtsam.Pose3, z: gtsam.Pose3,
-                             H: list | None = None) -> np.ndarray:
-    """Robot a observes robot b: z = a_T_b. Robot b's pose xb lives in its own base frame,
-    `base` = worldA_T_baseB. error = Log(z^-1 xa^-1 base xb)."""
-    if H is None:
-        return gtsam.Pose3.Logmap(z.between(xa.between(base.compose(xb))))
-    Hw, Hxb = np.zeros((6, 6), order="F"), np.zeros((6, 6), order="F")
-    world_b = base.compose(xb, Hw, Hxb)
-    Hxa, Hwb = np.zeros((6, 6), order="F"), np.zeros((6, 6), order="F")
-    rel = xa.between(world_b, Hxa, Hwb)
-    Hz, Hrel = np.zeros((6, 6), order="F"), np.zeros((6, 6), order="F")
-    err = z.between(rel, Hz, Hrel)
-    Hl = np.zeros((6, 6), order="F")
-    e = gtsam.Pose3.Logmap(err, Hl)
-    HlHrel = Hl @ Hrel
-    H[0] = HlHrel @ Hxa
-    H[1] = HlHrel @ Hwb @ Hw
-    H[2] = HlHrel @ Hwb @ Hxb
-    return e
+def co_registrations(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
+    """Robot a observes robot b (N at once): z = a_T_b; robot b's pose xb lives in its own base frame,
+    `base` W = worldA_T_baseB. With M = xa^-1 W xb and E = z^-1 M: e = Log(E) (rad, m). Jacobians, Jr^-1 at
+    e: d/dxb = Jr^-1; d/dW = Jr^-1 Ad(xb^-1); d/dxa = -Jr^-1 Ad(M^-1). x = [xa, W, xb] (N, 4, 4), data z
+    (N, 4, 4)."""
+    xa, base, xb = x
+    M = lie.inverse(xa) @ base @ xb
+    e = lie.log(lie.inverse(data["z"]) @ M)
+    if not jacobians:
+        return e
+    j = lie.jr_inv(e)
+    return e, [-j @ lie.adjoint(lie.inverse(M)), j @ lie.adjoint(lie.inverse(xb)), j]
+
+
+CO_REGISTRATION = VectorizedResidual("pose.co_registration", (POSE3, POSE3, POSE3), 6, co_registrations)
