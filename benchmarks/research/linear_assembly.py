@@ -65,7 +65,7 @@ def gtsam_step(values, evaluator, order, ordering="colamd"):
 def scipy_step(values, group, native, layout):
     keys, offsets, dims, total = layout
     reader = ValueReader(values)
-    x = [reader.read(t, group.keys[:, j]) for j, t in enumerate(SCALED_BETWEEN.variables)]
+    x = reader.variables(SCALED_BETWEEN.variables, group.keys)
     r, jac = SCALED_BETWEEN.evaluate(x, group.data, True)
     n, m = r.shape
     rows, cols, vals, rhs = [], [], [], [-(r / group.sigmas).ravel()]

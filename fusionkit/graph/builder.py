@@ -319,11 +319,9 @@ class BuildContext:
         if not np.all(sigma_rows > 0):
             raise PluginError(f"{spec.label}: {residual.name} sigmas must be > 0")
         times = np.broadcast_to(np.asarray(times, dtype=float), (n,)).tolist()
-        shared = None if per_instance else self.noise(sigma_rows[0] if n else np.ones(residual.dim), spec)
-        kernel = shared.robust() if isinstance(shared, gtsam.noiseModel.Robust) else None
-        if per_instance and n:
-            probe = self.noise(sigma_rows[0], spec)
-            kernel = probe.robust() if isinstance(probe, gtsam.noiseModel.Robust) else None
+        first = self.noise(sigma_rows[0] if n else np.ones(residual.dim), spec)  # the entry's kernel comes with it
+        kernel = first.robust() if isinstance(first, gtsam.noiseModel.Robust) else None
+        shared = None if per_instance else first
         group = VectorizedGroup(residual, keys, data, sigma_rows, kernel)
         instances = InstanceCache(residual, keys, data)
         for i in range(n):

@@ -2,10 +2,12 @@
 
 A plugin writes ONE residual function for N factor instances at once, on numpy arrays with a leading
 axis N, and adds them with `ctx.add_vectorized`. fusionkit then
-- linearizes all instances of the entry in one call of that function per solver iteration
-  (fusionkit's batch LM/GN, its checks and marginals: `GraphEvaluator`), and
-- wraps each instance as a `gtsam.CustomFactor` that calls the same function at N = 1, for every other
-  GTSAM caller (Dogleg, iSAM2, fixed-lag, reports) and for the factor contract suite.
+- linearizes all instances of the entry in one call of that function per solver iteration: its batch
+  LM/GN, checks, marginals and reports (`GraphEvaluator`, graph/evaluator.py) and its iSAM2 and fixed-lag
+  smoother (solve/linear_containers.py), and
+- wraps each instance as a `gtsam.CustomFactor` for GTSAM's own callers (Dogleg, gtsam.Marginals) and the
+  factor contract suite: the instances of one entry share their evaluations (`InstanceCache`), a lone
+  factor (`instance_factor`) calls the function at N = 1.
 
 Variables reach the function in these array forms (leading axis N):
     pose3 (N, 4, 4) homogeneous; pose2 (N, 3) [x, y, theta]; rot3 (N, 3, 3); scalar (N,);
@@ -34,12 +36,10 @@ NUMERICAL_STEP = 1e-6
 def _one(vartype: VarType, value: Any) -> np.ndarray:
     """A gtsam value -> its array form (without the leading axis)."""
     name = vartype.name
-    if name == "pose3":
+    if name in ("pose3", "rot3"):
         return value.matrix()
     if name == "pose2":
         return np.array([value.x(), value.y(), value.theta()])
-    if name == "rot3":
-        return value.matrix()
     if name == "imu_bias":
         return np.asarray(value.vector(), dtype=float)
     return np.asarray(value, dtype=float)
@@ -76,6 +76,10 @@ class ValueReader:
         unique, inverse = np.unique(keys, return_inverse=True)
         arrays = np.array([_one(vartype, vartype.read(self.values, int(k))) for k in unique])
         return arrays[inverse]
+
+    def variables(self, types: tuple[VarType, ...], keys: np.ndarray) -> list[np.ndarray]:
+        """The variables of N factors, keys (N, k) of the types `types`: one array per variable slot."""
+        return [self.read(t, keys[:, j]) for j, t in enumerate(types)]
 
 
 def retract_arrays(vartype: VarType, x: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -187,8 +191,7 @@ class InstanceCache:
         types = self.residual.variables
         x = [_one(t, t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
         if len(self.keys) > 1 and not self._holds(row, x) and all(values.exists(k) for k in self.unique_keys):
-            reader = ValueReader(values)
-            self.held = [reader.read(t, self.keys[:, j]) for j, t in enumerate(types)]
+            self.held = ValueReader(values).variables(types, self.keys)
             r, jac = self.residual.evaluate(self.held, self.data, True)
             self.r, self.jacobians = np.asarray(r, dtype=float).reshape(len(self.keys), -1), jac
         if self._holds(row, x):
@@ -226,9 +229,6 @@ class VectorizedGroup:
         return VectorizedGroup(self.residual, self.keys[rows], {k: v[rows] for k, v in self.data.items()},
                                self.sigmas[rows], self.kernel)
 
-    def _variables(self, reader: ValueReader) -> list[np.ndarray]:
-        return [reader.read(t, self.keys[:, j]) for j, t in enumerate(self.residual.variables)]
-
     def _weights(self, whitened: np.ndarray) -> np.ndarray:
         """sqrt of the kernel's weight at each instance's whitened norm (GTSAM's Robust.reweight)."""
         if self.kernel is None:
@@ -238,7 +238,7 @@ class VectorizedGroup:
 
     def residuals(self, reader: ValueReader) -> np.ndarray:
         """Unwhitened residuals (N, dim)."""
-        r = self.residual.evaluate(self._variables(reader), self.data, False)
+        r = self.residual.evaluate(reader.variables(self.residual.variables, self.keys), self.data, False)
         return np.asarray(r, dtype=float).reshape(len(self.keys), self.residual.dim)
 
     def errors(self, reader: ValueReader) -> np.ndarray:
@@ -250,7 +250,7 @@ class VectorizedGroup:
 
     def linear_factors(self, reader: ValueReader) -> list[gtsam.JacobianFactor]:
         """Whitened Jacobian factors of all instances, linearized in one call of the residual."""
-        r, jac = self.residual.evaluate(self._variables(reader), self.data, True)
+        r, jac = self.residual.evaluate(reader.variables(self.residual.variables, self.keys), self.data, True)
         n = len(self.keys)
         r = np.asarray(r, dtype=float).reshape(n, -1)
         w = self._weights(r / self.sigmas)[:, None] / self.sigmas

@@ -101,6 +101,15 @@ def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values]) 
     return values, time.perf_counter() - tic
 
 
+def _isam2_update(isam: gtsam.ISAM2, containers: LinearContainers, records, values: gtsam.Values) -> gtsam.Values:
+    """One iSAM2 update with `records` (new variables at `values`), the vectorized factors handed over and
+    swapped by `containers`; returns the estimate it hands out."""
+    step = containers.step(records, isam, values)
+    result = isam.update(step.graph, values, step.remove)
+    containers.added(step, result.getNewFactorsIndices())
+    return isam.calculateEstimate()
+
+
 def _settle(isam: gtsam.ISAM2, containers: LinearContainers, estimate: gtsam.Values,
             updates: int = 10) -> gtsam.Values:
     """Updates without new factors until the estimate stops moving (at most `updates`): each update takes
@@ -110,10 +119,7 @@ def _settle(isam: gtsam.ISAM2, containers: LinearContainers, estimate: gtsam.Val
     docs/models/unified_graph.md#time-offsets). Vectorized factors are relinearized as the solver
     relinearizes (linear_containers.py)."""
     for _ in range(updates):
-        step = containers.step([], isam, gtsam.Values())
-        result = isam.update(step.graph, gtsam.Values(), step.remove)
-        containers.added(step, result.getNewFactorsIndices())
-        settled = isam.calculateEstimate()
+        settled = _isam2_update(isam, containers, [], gtsam.Values())
         moved = np.abs(settled.localCoordinates(estimate).vector()).max()
         estimate = settled
         if moved < 1e-9:
@@ -133,20 +139,14 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     latency = []
     start = time.perf_counter()
     steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
-
-    def update(records, values: gtsam.Values) -> gtsam.Values:
-        step = containers.step(records, isam, values)
-        result = isam.update(step.graph, values, step.remove)
-        containers.added(step, result.getNewFactorsIndices())
-        return isam.calculateEstimate()
-
     if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, values, t, steps = warm_start(problem, steps, settings["warmup"])
-        estimate, _ = _timed_step(problem, t, lambda: update(first, values))
+        estimate, _ = _timed_step(problem, t, lambda: _isam2_update(isam, containers, first, values))
         warmup = time.perf_counter() - tic
     for i, (t, records, new) in enumerate(steps):
-        estimate, dt = _timed_step(problem, t, lambda: update(records, value_subset(problem, new)))
+        estimate, dt = _timed_step(problem, t,
+                                   lambda: _isam2_update(isam, containers, records, value_subset(problem, new)))
         latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
@@ -189,6 +189,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         if marginal_keys and early:
             covariances.update(tree_marginals(GraphEvaluator(first), warm_values, set(early) & marginal_keys))
         warmup = time.perf_counter() - tic
+
     def update(records, values: gtsam.Values, stamps: dict, leaving: list[int]) -> gtsam.Values:
         step = containers.step(records, smoother, values)
         smoother.update(step.graph, values, stamps, step.remove)

@@ -98,7 +98,7 @@ def test_numerical_jacobians_equal_analytic_on_pose2_rot3_point3_scalar_and_pose
     for a, b in zip(ja, jn):
         np.testing.assert_allclose(b, a, atol=1e-7)
     values, keys, data3, _ = _chain(rng)
-    x3 = [ValueReader(values).read(t, keys[:, j]) for j, t in enumerate((POSE3, POSE3, SCALAR))]
+    x3 = ValueReader(values).variables((POSE3, POSE3, SCALAR), keys)
     _, ja = SCALED_BETWEEN.evaluate(x3, data3, True)
     numeric = VectorizedResidual("scaled", SCALED_BETWEEN.variables, 6, SCALED_BETWEEN.function, "numerical")
     _, jn = numeric.evaluate(x3, data3, True)
