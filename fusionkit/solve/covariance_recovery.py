@@ -15,11 +15,12 @@ import gtsam
 import numpy as np
 import scipy.linalg
 
+from ..graph.evaluator import GraphEvaluator
 from .factorization import eliminate
 from .marginals import frontal_count
 
 
-def recovered_marginals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
+def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
                         ordering: str = "colamd") -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key, from the QR Bayes tree."""
     tree = eliminate(graph.linearize(values), True, ordering)

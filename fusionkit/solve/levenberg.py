@@ -25,6 +25,7 @@ from typing import Callable
 import gtsam
 import numpy as np
 
+from ..graph.evaluator import GraphEvaluator
 from .factorization import elimination_order, eliminate
 
 
@@ -71,14 +72,15 @@ def _converged(before: float, after: float, rtol: float, atol: float) -> bool:
     return after <= atol or abs(decrease) <= atol or abs(decrease) <= rtol * before
 
 
-def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, rtol: float, atol: float,
+def levenberg_marquardt(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, initial: gtsam.Values, rtol: float, atol: float,
                         max_iterations: int, damping: DampingSettings | None,
                         progress: Callable[[int, float], None] | None = None,
                         qr: bool = False, ordering: str = "colamd",
                         first: tuple[gtsam.GaussianFactorGraph, gtsam.GaussianBayesTree] | None = None,
                         ) -> tuple[gtsam.Values, list[float]]:
-    """Minimize graph.error; `damping=None` gives plain Gauss-Newton; `qr` solves each linear
-    system by QR instead of Cholesky, eliminated in `ordering` (colamd, metis). `first`: the system
+    """Minimize graph.error (`graph`: fusionkit's GraphEvaluator, or a gtsam graph); `damping=None` gives
+    plain Gauss-Newton; `qr` solves each linear system by QR instead of Cholesky, eliminated in `ordering`
+    (colamd, metis). `first`: the system
     linearized at `initial` and its elimination in the same way (checks.check_constrained's), which the
     first iteration then reuses instead of computing them again (the same numbers). Returns
     (values, cost history)."""

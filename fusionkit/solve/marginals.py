@@ -15,6 +15,8 @@ import gtsam
 import numpy as np
 import scipy.linalg
 
+from ..graph.evaluator import GraphEvaluator
+
 
 def frontal_count(cond: gtsam.GaussianConditional, dims: gtsam.VectorValues) -> int:
     """How many of the conditional's keys are frontal (their dimensions add up to R's rows)."""
@@ -25,7 +27,7 @@ def frontal_count(cond: gtsam.GaussianConditional, dims: gtsam.VectorValues) -> 
     return n
 
 
-def tree_marginals(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int]) -> dict[int, np.ndarray]:
+def tree_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int]) -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key."""
     tree = graph.linearize(values).eliminateMultifrontal()
     dims = values.zeroVectors()
