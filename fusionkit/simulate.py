@@ -16,12 +16,19 @@ from .config.loader import RunConfig, load_config
 from .config.overrides import apply_override
 from .config.yamlio import Document
 from .data.files import write_csv_stream, write_tum
+from .data.rosbag_writer import message_type, write_bag
 from .errors import ConfigError
 from .plugins import registry
 from .report.writer import atomic_directory
 
 
-def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0) -> list[Path]:
+def _bag_name(ros: str) -> str:
+    return "data/recording.bag" if ros == "ros1" else "data/recording"
+
+
+def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0, bag: str | None = None) -> list[Path]:
+    """`bag` (ros1 | ros2): the data as one ROS bag (topic /<stream>, the truth trajectories also as
+    /truth/<robot>) read by a `rosbag` source, instead of one CSV or TUM file per stream."""
     reg = registry()
     cls = reg.get("simulators", scenario)
     if cls is None:
@@ -33,12 +40,20 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0)
     params = cls.resolve(params, Document(params, Path(f"<simulate {scenario}>")))
     sim = cls()
     data = sim.simulate(params, np.random.default_rng(seed))
+    if bag:
+        for stream in data.streams.values():
+            message_type(stream)  # every stream has a message, before anything is written
     written: list[Path] = []
     with atomic_directory(out, "simulate") as tmp:
         for sub in ("data", "truth", "robots"):
             (tmp / sub).mkdir()
         sources = []
-        for name, stream in data.streams.items():
+        if bag:
+            topics = {f"/{name}": stream for name, stream in data.streams.items()}
+            truth_topics = {f"/truth/{robot}": traj for robot, traj in (data.truth_trajectories or {}).items()}
+            write_bag(tmp / _bag_name(bag), {**topics, **truth_topics}, bag)
+            sources.append({"type": "rosbag", "path": _bag_name(bag), "topics": {t: s.name for t, s in topics.items()}})
+        for name, stream in ({} if bag else data.streams).items():
             if stream.is_pose:
                 write_tum(tmp / "data" / f"{name}.tum", stream)
                 sources.append({"type": "tum", "name": name, "path": f"data/{name}.tum"})

@@ -185,7 +185,7 @@ def cmd_simulate(args) -> int:
         with _status(_progress(args)) as progress:
             if progress:
                 progress.stage(f"simulating {args.scenario}")
-            files = write_dataset(args.scenario, out, args.set, args.seed)
+            files = write_dataset(args.scenario, out, args.set, args.seed, args.bag)
     except OSError as exc:
         raise write_error(out, exc) from None
     config = out / "config.yaml"
@@ -265,6 +265,8 @@ def parser(plugin_commands: list[type] = ()) -> argparse.ArgumentParser:
     sim.add_argument("--seed", type=int, default=0)
     sim.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario parameter, e.g. duration=10")
+    sim.add_argument("--bag", choices=("ros1", "ros2"), help="write the data as one ROS 1 .bag file or ROS 2 bag "
+                     "folder (topic /<stream>; truth also as /truth/<robot>) instead of CSV and TUM files")
     for cls in plugin_commands:
         command = cls()
         cmd = sub.add_parser(cls.name, parents=common, help=cls.summary.replace("%", "%%"), description=cls.summary)

@@ -71,6 +71,7 @@ CONFIG_SCHEMA = {
                 "absolute_tolerance": {**POSITIVE, "default": 1e-9},
                 "lag": {**POSITIVE, "default": 2.0},
                 "warmup": {"type": "number", "minimum": 0, "default": 0},
+                "new_states": {"enum": ["initial", "carried"], "default": "initial"},
                 "relinearize_threshold": {**POSITIVE, "default": 0.01},
                 "max_cost_ratio": POSITIVE,  # default by type: SOLVER_TYPE_DEFAULTS
                 "marginals": {"type": "boolean", "default": True},

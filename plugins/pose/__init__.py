@@ -2,7 +2,7 @@
 
 from fusionkit.api import hookimpl, robot_description_files
 
-from . import imu, motion
+from . import imu, imu_vo, motion
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
@@ -20,7 +20,7 @@ def register_initializers():
 
 @hookimpl
 def register_simulators():
-    return SIMULATORS
+    return SIMULATORS + [imu_vo.ImuVoSimulator]
 
 
 @hookimpl

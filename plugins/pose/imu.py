@@ -5,7 +5,8 @@
 (Forster et al.) into one native `ImuFactor` over (pose_i, velocity_i, pose_j, velocity_j, bias).
 Gravity points down the world z axis (`gravity`, m/s^2). The bias is an `imu_bias`
 parameter of the robot ([accelerometer (3), gyroscope (3)]); per-state velocities are the
-`velocity` family (world frame, m/s). `imu.velocity` initializes them from the poses.
+`velocity` family (world frame, m/s). `imu.velocity` initializes them from the poses;
+`imu.odometry_scale` the unknown scale of a scaled odometry (monocular VO) from the IMU.
 """
 
 from __future__ import annotations
@@ -13,7 +14,12 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import VELOCITY3, FactorExample, FactorType, Initializer, Spec, held_intervals
+from scipy.sparse import coo_matrix
+from scipy.sparse.linalg import lsqr
+
+from fusionkit.api import POSE_COLUMNS, VELOCITY3, FactorExample, FactorType, Initializer, Spec, held_intervals
+
+from .factors import odometry_pairs
 
 NAME = {"type": "string"}
 IMU_COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -122,5 +128,159 @@ class VelocityFromPoses(Initializer):
                 ctx.set_initial(family.key(k), vel[k])
 
 
+def scale_rows(dp_odo: np.ndarray, R: np.ndarray, dp: np.ndarray, dv: np.ndarray, dt: np.ndarray,
+               ka: np.ndarray, gravity: float) -> tuple[coo_matrix, np.ndarray]:
+    """The linear system in x = [s, v_0, v_1, ...] (scale, world velocities of the states) of N odometry pairs
+    (ka, ka + 1): s dp_odo - v_a dt = R_a dp + g dt^2 / 2 and v_b - v_a = R_a dv + g dt (the preintegrated
+    increments dp, dv about a zero bias, R_a the world attitude of state a, g = [0, 0, -gravity])."""
+    n = len(ka)
+    g = np.array([0.0, 0.0, -gravity])
+    rows = np.arange(6 * n).reshape(n, 2, 3)
+    va = 1 + 3 * ka[:, None] + np.arange(3)                     # columns of v_a, v_b
+    vb = va + 3
+    r_pos, r_vel = rows[:, 0], rows[:, 1]
+    entries = [(r_pos, np.zeros_like(r_pos), dp_odo), (r_pos, va, -dt[:, None] * np.ones(3)),
+               (r_vel, vb, np.ones((n, 3))), (r_vel, va, -np.ones((n, 3)))]
+    i, j, v = (np.concatenate([e[k].ravel() for e in entries]) for k in range(3))
+    A = coo_matrix((v, (i, j)), shape=(6 * n, 1 + 3 * (int(ka.max()) + 2)))
+    b = np.stack([np.einsum("nij,nj->ni", R, dp) + 0.5 * g * dt[:, None] ** 2,
+                  np.einsum("nij,nj->ni", R, dv) + g * dt[:, None]], axis=1).ravel()
+    return A, b
+
+
+class OdometryScaleFromImu(Initializer):
+    name = "imu.odometry_scale"
+    summary = ("initial scale of a scaled odometry (monocular VO) from the IMU: least squares over the scale and "
+               "the states' velocities, zero bias")
+    robot_fields = ("robot",)
+    stream_fields = ("stream", "imu")
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "imu": NAME, "scale": NAME,
+                             "max_gap": {"type": "number", "exclusiveMinimum": 0},
+                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
+                                         "default": list(IMU_COLUMNS)},
+                             "gravity": {"type": "number", "minimum": 0, "default": 9.81}},
+              "required": ["robot", "stream", "imu", "scale"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot", "pose3")
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_columns(spec, "imu", tuple(spec["columns"]))
+        scope.require_parameter(spec, "robot", "scale", "scalar")
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        """The odometry's frame is taken as the world frame turned by the first state's initial attitude
+        (pose.origin's), as pose.dead_reckoning does; pairs across a gap of the odometry are left out."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        ka, before, after = odometry_pairs(ctx, spec, robot)
+        if len(ka) < 3:
+            raise spec.error("stream", f"{len(ka)} pairs of consecutive states have odometry: expected at least 3 "
+                             "to estimate a scale")
+        first = ctx.initial.atPose3(ctx.pose_key(robot, 0)) if ctx.has_variable(ctx.pose_key(robot, 0)) \
+            else gtsam.Pose3()
+        turn = first.rotation().matrix() @ before[0].rotation().matrix().T  # odometry frame -> world
+        t_imu, samples = _imu_samples(ctx, spec)
+        params = preintegration_params(1e-3, 1e-4, spec["gravity"])
+        zero = gtsam.imuBias.ConstantBias()
+        dp, dv = np.empty((len(ka), 3)), np.empty((len(ka), 3))
+        for n, k in enumerate(ka.tolist()):
+            pim = preintegrate(params, zero, t_imu, samples, float(states.t[k]), float(states.t[k + 1]))
+            dp[n], dv[n] = pim.deltaPij(), pim.deltaVij()
+        R = np.array([turn @ a.rotation().matrix() for a in before])
+        dp_odo = np.array([turn @ (b.translation() - a.translation()) for a, b in zip(before, after)])
+        A, b = scale_rows(dp_odo, R, dp, dv, np.diff(states.t)[ka], ka, spec["gravity"])
+        A = A.tocsc()
+        used = np.flatnonzero(np.diff(A.indptr))  # velocity columns of states in no pair stay out
+        scale = float(lsqr(A[:, used], b, atol=1e-12, btol=1e-12)[0][0])
+        if not scale > 0:
+            raise spec.error("scale", f"the IMU gives a scale of {scale:.3g} for the odometry (expected > 0): "
+                             "check the IMU's axes and units and the odometry's frame")
+        ctx.set_initial(ctx.parameter(robot, spec["scale"]), scale)
+
+
+def _imu_samples(ctx, spec: Spec):
+    imu = ctx.stream(spec["imu"])
+    return imu.t, np.column_stack([imu.column(c) for c in spec["columns"]])
+
+
+def end_velocities(t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities (3,) at the first and the last of the times t from positions p (N, 3): derivatives of a
+    least-squares quadratic (a line for fewer than 4 points)."""
+    fit = np.polynomial.polynomial.polyfit(t - t[-1], p, 2 if len(t) >= 4 else 1)
+    slope = np.polynomial.polynomial.polyder(fit)
+    return np.polynomial.polynomial.polyval(t[0] - t[-1], slope), slope[0]
+
+
+def gravity_tilt(R: list[np.ndarray], dv: np.ndarray, v_first: np.ndarray, v_last: np.ndarray, duration: float,
+                 gravity: float) -> np.ndarray:
+    """The rotation (3, 3) that levels attitudes R_a whose preintegrated velocity increments dv_a add up to the
+    velocity change over `duration` s: sum R_a dv_a = v_last - v_first - g duration. Gravity dominates the sum,
+    so roll and pitch errors of R show as its tilt; the smallest rotation taking it onto the right side."""
+    u = sum(Ra @ d for Ra, d in zip(R, dv))
+    w = v_last - v_first + np.array([0.0, 0.0, gravity * duration])
+    axis = np.cross(u, w)
+    angle = np.arctan2(np.linalg.norm(axis), u @ w)
+    return gtsam.Rot3.Rodrigues(axis / max(np.linalg.norm(axis), 1e-12) * angle).matrix()
+
+
+class BridgeOdometryGaps(Initializer):
+    name = "imu.bridge_gaps"
+    summary = ("initial poses across the gaps of an odometry from the IMU (zero bias): each gap predicted from the "
+               "state before it, levelled by gravity; the states after it moved rigidly to continue from the prediction")
+    robot_fields = ("robot",)
+    stream_fields = ("stream", "imu")
+    schema = {"type": "object",
+              "properties": {"robot": NAME, "stream": NAME, "imu": NAME,
+                             "max_gap": {"type": "number", "exclusiveMinimum": 0},
+                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
+                                         "default": list(IMU_COLUMNS)},
+                             "gravity": {"type": "number", "minimum": 0, "default": 9.81}},
+              "required": ["robot", "stream", "imu", "max_gap"], "additionalProperties": False}
+    WINDOW = 20  # states before a gap: their positions give its starting velocity, their IMU its tilt
+
+    def check(self, spec: Spec, scope) -> None:
+        scope.require_states(spec, "robot", "pose3")
+        scope.require_columns(spec, "stream", POSE_COLUMNS)
+        scope.require_columns(spec, "imu", tuple(spec["columns"]))
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        """Runs after the odometry set the poses (pose.dead_reckoning); a gap is a run of state pairs with no
+        odometry pair between two pairs that have one (or after the last)."""
+        robot = spec["robot"]
+        states = ctx.state_set(robot, spec)
+        keys = [ctx.pose_key(robot, k) for k in range(len(states))]
+        poses = [ctx.initial.atPose3(key) for key in keys]
+        ka = odometry_pairs(ctx, spec, robot)[0]
+        t_imu, samples = _imu_samples(ctx, spec)
+        params = preintegration_params(1e-3, 1e-4, spec["gravity"])
+        zero = gtsam.imuBias.ConstantBias()
+        starts = ka[np.flatnonzero(np.diff(ka) > 1)] + 1            # last state of a stretch: a gap follows
+        if len(ka) and ka[-1] + 1 < len(states) - 1:
+            starts = np.append(starts, ka[-1] + 1)
+        for e in starts.tolist():
+            following = ka[ka > e]
+            end = int(following[0]) if len(following) else len(states) - 1   # first state after the gap
+            lo = max(0, e - self.WINDOW)
+            pos = np.array([p.translation() for p in poses[lo:e + 1]])
+            v_first, v_last = end_velocities(states.t[lo:e + 1], pos)
+            dv = [preintegrate(params, zero, t_imu, samples, float(states.t[k]), float(states.t[k + 1])).deltaVij()
+                  for k in range(lo, e)]
+            tilt = gravity_tilt([poses[k].rotation().matrix() for k in range(lo, e)], dv, v_first, v_last,
+                                float(states.t[e] - states.t[lo]), spec["gravity"])
+            start = gtsam.Pose3(gtsam.Rot3(tilt @ poses[e].rotation().matrix()), poses[e].translation())
+            nav = gtsam.NavState(start, v_last)
+            for k in range(e + 1, end + 1):
+                pim = preintegrate(params, zero, t_imu, samples, float(states.t[e]), float(states.t[k]))
+                predicted = pim.predict(nav, zero).pose()
+                if k < end:
+                    poses[k] = predicted
+            move = predicted.compose(poses[end].inverse())
+            poses[end:] = [move.compose(p) for p in poses[end:]]
+        for key, pose in zip(keys, poses):
+            if ctx.has_variable(key):
+                ctx.set_initial(key, pose)
+
+
 FACTOR_TYPES = [PreintegratedImu]
-INITIALIZERS = [VelocityFromPoses]
+INITIALIZERS = [VelocityFromPoses, OdometryScaleFromImu, BridgeOdometryGaps]
