@@ -14,7 +14,8 @@ prior states (the position and heading of a VO+IMU system are unobservable, roll
 - Visual odometry (`camera_rate` Hz): the camera-rate increments with their translation divided by
   `scale` and noise `vo_sigma` (in the VO's own units), chained from the identity, so it drifts. During
   the dropout [`dropout_start`, `dropout_start` + `dropout_duration`) s there are no frames; after it the
-  VO relocalizes in its own map (same frame and scale). No VO factor spans the gap (`max_gap`).
+  VO has lost track and starts again from the identity (a new frame; the same scale, as if the map's
+  scale were kept). No VO factor spans the gap (`max_gap`).
 
 Streams: `imu` (t, ax, ay, az, gx, gy, gz), `vo` (poses). Truth: the trajectory, the IMU bias, the scale.
 """
@@ -105,13 +106,16 @@ class ImuVoSimulator(Simulator):
         t = sample_times(p["duration"], p["camera_rate"])
         pos, _, R = body_path(t)
         truth = np.column_stack([pos, Rotation.from_matrix(R).as_quat()])
-        vo = odometry(poses_from_array(truth), p["vo_sigma"], rng, p["scale"])
         start, end = p["dropout_start"], p["dropout_start"] + p["dropout_duration"]
         seen = (t < start) | (t >= end)
+        vo = []  # one chain before the dropout, a new one after it
+        for part in ((t < start, t >= end) if end > start else (seen,)):
+            if part.any():
+                vo += odometry(poses_from_array(truth[part]), p["vo_sigma"], rng, p["scale"])
         ti = sample_times(p["duration"], p["imu_rate"])
         imu, bias = imu_samples(ti, p["imu_rate"], p, rng)
         streams = {"imu": Stream("imu", ti, IMU_COLUMNS, imu, "simulated:imu"),
-                   "vo": pose_stream("vo", t[seen], [x for x, s in zip(vo, seen) if s], "simulated:vo")}
+                   "vo": pose_stream("vo", t[seen], vo, "simulated:vo")}
         calibration = {ROBOT: {"imu_bias": {"type": "imu_bias", "value": bias.tolist()},
                                "vo_scale": {"type": "scalar", "value": float(p["scale"])}}}
         return SourceOutput(streams, {ROBOT: pose_stream(ROBOT, t, truth, "simulated:truth")}, calibration)
