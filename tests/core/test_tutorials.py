@@ -215,7 +215,22 @@ def check_scaled_vo(out: Path) -> None:
     assert isam["solver"]["step_latency_ms"]["steps"] >= 600
 
 
-CHECKS = {"scaled_vo": check_scaled_vo, "cable_robot_rigid": check_cable_robot_rigid,
+def check_imu_vo_bag(out: Path) -> None:
+    """Scale within 3 sigma in batch and fixed-lag (the dropout's sigmas: tests/plugins/pose/test_imu_vo.py);
+    ROS 1 and ROS 2 bags of one seed give one estimate."""
+    truth = yaml.safe_load((out / "imu_vo/truth/calibration.yaml").read_text())["robots"]["cam"]
+    for folder, ate in (("imu_vo_batch", 0.6), ("imu_vo_lag", 1.0)):
+        report = _report(out, folder)
+        est = report["parameters"]["cam"]["vo_scale"]
+        assert abs(est["value"] - truth["vo_scale"]["value"]) < 3 * est["sigma"], (folder, est)
+        assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < ate, folder
+    assert _report(out, "imu_vo_lag")["solver"]["step_latency_ms"]["steps"] >= 1000
+    a, b = _report(out, "imu_vo_batch"), _report(out, "imu_vo_ros1_batch")
+    assert a["parameters"]["cam"]["vo_scale"]["value"] == pytest.approx(b["parameters"]["cam"]["vo_scale"]["value"],
+                                                                          abs=1e-9)
+
+
+CHECKS = {"scaled_vo": check_scaled_vo, "imu_vo_bag": check_imu_vo_bag, "cable_robot_rigid": check_cable_robot_rigid,
           "cable_robot_sag": check_cable_robot_sag, "uwb": check_uwb, "multirobot": check_multirobot,
           "arash": check_arash, "serial_arm": check_serial_arm, "wheeled_robot": check_wheeled_robot,
           "epuck": check_epuck}
