@@ -96,7 +96,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
                                        "solver:\n  type: batch\n  metod: lm\n")
     assert str(err) == ("c.yaml:5: solver.metod: unknown key 'metod'; accepted keys: a_posteriori_sigmas, "
                         "absolute_tolerance, "
-                        "factorization, lag, marginals, max_cost_ratio, max_iterations, method, ordering, "
+                        "factorization, lag, marginals, max_cost_ratio, max_iterations, method, new_states, ordering, "
                         "refine, relative_tolerance, "
                         "relinearize_threshold, type, warmup")
 
@@ -110,7 +110,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     ("{marginals: 3}", "c.yaml:3: solver.marginals: got 3; expected true or false"),
     ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, factorization, "
                 "ordering, max_iterations, "
-                "relative_tolerance, absolute_tolerance, lag, warmup, relinearize_threshold, max_cost_ratio, marginals, "
+                "relative_tolerance, absolute_tolerance, lag, warmup, new_states, relinearize_threshold, max_cost_ratio, marginals, "
                 "a_posteriori_sigmas, refine")),
 ])
 def test_wrong_values_say_what_is_accepted(solver, message):
@@ -208,7 +208,7 @@ def test_scaled_vo_loads_with_overrides_applied():
     # the solver section with its defaults: the schema's, then iSAM2's factorization and chi-square gate
     assert config.solver == {"type": "isam2", "method": "lm", "ordering": "auto", "max_iterations": 100,
                              "relative_tolerance": 1e-6, "absolute_tolerance": 1e-9, "lag": 2.0, "warmup": 0,
-                             "relinearize_threshold": 0.01, "marginals": True, "a_posteriori_sigmas": False,
+                             "new_states": "initial", "relinearize_threshold": 0.01, "marginals": True, "a_posteriori_sigmas": False,
                              "factorization": "qr", "max_cost_ratio": 10.0}
     assert config.output == {"plots": True, "state_covariances": False}
     assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.0016}
