@@ -30,8 +30,9 @@ from .report.writer import check_output_folder, write_output_folder
 from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, noisy, odometry, sample_times,
                                 smooth_trajectory)
 from .testing import FactorExample
+from .view.shapes import Lines, Points
 
-API_VERSION = "1.5"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.6"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -40,6 +41,7 @@ API_VERSION = "1.5"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 #      accepts_repeated_stamps: the stream fields it takes sample by sample)
 # 1.5: vectorized factors: VectorizedResidual, ctx.add_vectorized, vectorized_factor (one instance, for
 #      examples), lie (SE(3) for N poses at once)
+# 1.6: RobotModel.geometry (what `fusionkit view` draws of a robot) with the shapes Points and Lines
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -66,4 +68,6 @@ __all__ = [
     "CLOCK_SCHEMA", "clock_times",
     # factors evaluated many at a time (ctx.add_vectorized) and the SE(3) arrays they are written with
     "VectorizedResidual", "vectorized_factor", "lie",
+    # what a robot model draws of itself (RobotModel.geometry)
+    "Points", "Lines",
 ]

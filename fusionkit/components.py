@@ -197,6 +197,14 @@ class RobotModel(Component):
         Default: none."""
         return {}
 
+    def geometry(self, robot: str, calibrated: "RobotDescription", state: dict) -> list:
+        """What `fusionkit view` and report.html draw of robot `robot` at one time: a list of
+        `fusionkit.api.Points` / `Lines` in the world frame (m). `state` holds the robot's per-state values
+        then, by family (`pose`: a gtsam.Pose3, planar poses lifted to z = 0; `joints`: ...), and is empty
+        for a robot without states (drawn once); `calibrated` as for `outputs`. Default: nothing (the
+        trajectory, point parameters and sigma ellipsoids are drawn for every robot)."""
+        return []
+
 
 class Initializer(Component):
     """Fills initial values (`ctx.set_initial`) after all factors are built."""

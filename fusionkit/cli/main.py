@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from .. import __version__
-from ..errors import FusionkitError, SolverError
+from ..errors import ConfigError, FusionkitError, SolverError
 
 EXIT_ERROR, EXIT_INTERNAL, EXIT_REJECTED = 2, 3, 4
 
@@ -267,6 +267,13 @@ def parser(plugin_commands: list[type] = ()) -> argparse.ArgumentParser:
                      help="override a scenario parameter, e.g. duration=10")
     sim.add_argument("--bag", choices=("ros1", "ros2"), help="write the data as one ROS 1 .bag file or ROS 2 bag "
                      "folder (topic /<stream>; truth also as /truth/<robot>) instead of CSV and TUM files")
+    view = sub.add_parser("view", parents=common, help="the 3-D scene of a run's output folder: an open3d window, "
+                          "or --png FILE (matplotlib when open3d or OpenGL is missing)")
+    view.add_argument("folder", help="an output folder of `fusionkit run` (its scene.json)")
+    view.add_argument("--png", metavar="FILE", help="render offscreen into this new PNG file instead of a window")
+    view.add_argument("--time", type=float, help="the time (s) whose robot geometry is drawn (default: the last)")
+    view.add_argument("--backend", choices=("auto", "open3d", "matplotlib"), default="auto",
+                      help="--png renderer: open3d if installed and working (auto), or matplotlib")
     for cls in plugin_commands:
         command = cls()
         cmd = sub.add_parser(cls.name, parents=common, help=cls.summary.replace("%", "%%"), description=cls.summary)
@@ -276,7 +283,29 @@ def parser(plugin_commands: list[type] = ()) -> argparse.ArgumentParser:
 
 
 # fusionkit's own commands (components.BUILTIN_COMMANDS: names no plugin command may take)
-COMMANDS = {"run": cmd_run, "validate": cmd_validate, "plugins": cmd_plugins, "simulate": cmd_simulate}
+def cmd_view(args) -> int:
+    from ..view import open_window, render_png
+    folder = Path(args.folder)
+    try:
+        if args.png:
+            file = Path(args.png)
+            if file.exists():
+                raise ConfigError(f"--png {file}: exists; fusionkit writes only new files (choose another name)")
+            if not file.parent.is_dir():
+                raise ConfigError(f"--png {file}: folder {file.parent} does not exist")
+            note = render_png(folder, file, args.time, args.backend)
+            print(f"wrote {file}" + (f" ({note})" if note else ""))
+        else:
+            note = open_window(folder, args.time)
+            if note:
+                print(note)
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        raise ConfigError(str(exc)) from None
+    return 0
+
+
+COMMANDS = {"run": cmd_run, "validate": cmd_validate, "plugins": cmd_plugins, "simulate": cmd_simulate,
+            "view": cmd_view}
 
 
 def plugin_commands(argv: list[str]) -> list[type]:

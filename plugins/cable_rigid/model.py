@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fusionkit.api import RobotDescription, RobotModel
+from fusionkit.api import Lines, Points, RobotDescription, RobotModel
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 
@@ -93,6 +93,19 @@ class CdprModel(RobotModel):
                                    "additionalProperties": False},
                   "gravity": {"type": "number", "exclusiveMinimum": 0}},
               "required": ["cables"], "additionalProperties": False}
+
+    def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
+        """The cables as straight segments from each pulley a_i to its attachment p + R b_i, and the
+        end effector as the polygon of its attachments (at the pose of `state`)."""
+        pose = state.get("pose")
+        if pose is None:
+            return []
+        attached = pose.transformFrom(cable_robot(calibrated).attachments.T).T   # (n, 3) world
+        pulleys = np.asarray(calibrated.parameters["pulley"].values, float).reshape(-1, 3)
+        ring = np.vstack([attached, attached[:1]])
+        return [Lines(f"{robot} cables", np.stack([pulleys, attached], axis=1), "#2ca02c", 1.2),
+                Lines(f"{robot} end effector", np.stack([ring[:-1], ring[1:]], axis=1), "#9467bd", 2.0),
+                Points(f"{robot} attachments", attached, "#9467bd", 4.0)]
 
     def check_description(self, desc: RobotDescription) -> None:
         """`pulley` and `offset` must exist with one value per cable; a weight or a mass, not both

@@ -53,7 +53,7 @@ def test_run_scaled_vo_writes_the_outputs_and_recovers_the_scale_within_0_5(tmp_
     assert captured.out.startswith("fusionkit: scaled_vo_mocap: batch-lm, ")
     assert f"  outputs: {out}/" in captured.out
     assert sorted(p.name for p in out.iterdir()) == [".fusionkit-output", "calibration.yaml", "report.html",
-                                                     "report.json", "trajectories"]
+                                                     "report.json", "scene.json", "trajectories"]
     assert [p.name for p in tmp_path.iterdir()] == ["result"]  # no temporary folder left beside it
     report = json.loads((out / "report.json").read_text())
     assert report["name"] == "scaled_vo_mocap"

@@ -79,10 +79,10 @@ def test_empty_folder_and_current_folder_receive_the_outputs(project, tmp_path, 
     monkeypatch.chdir(here)
     assert main(["run", str(project / "config.yaml"), "--out", ".", *FAST]) == 0
     assert sorted(p.name for p in here.iterdir()) == [MARKER, "calibration.yaml", "report.html", "report.json",
-                                                      "trajectories"]
+                                                      "scene.json", "trajectories"]
     marker = json.loads((here / MARKER).read_text())
     assert marker["written_by"] == "fusionkit run"
-    assert marker["entries"] == ["calibration.yaml", "report.html", "report.json", "trajectories"]
+    assert marker["entries"] == ["calibration.yaml", "report.html", "report.json", "scene.json", "trajectories"]
 
 
 def test_earlier_output_is_replaced_but_a_file_the_user_added_stays(project, tmp_path, capsys):
@@ -95,7 +95,7 @@ def test_earlier_output_is_replaced_but_a_file_the_user_added_stays(project, tmp
     assert (out / "my_comments.txt").read_text() == "keep me\n"
     assert json.loads((out / "report.json").read_text())["name"]  # the new report replaced the old one
     assert sorted(p.name for p in out.iterdir()) == [MARKER, "calibration.yaml", "my_comments.txt", "report.html",
-                                                     "report.json", "trajectories"]
+                                                     "report.json", "scene.json", "trajectories"]
     assert [p.name for p in tmp_path.iterdir() if p.name != "projdir"] == ["result"]
 
 

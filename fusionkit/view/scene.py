@@ -1,0 +1,122 @@
+"""The 3-D scene of a run, written as scene.json beside report.json and drawn by `fusionkit view`:
+
+- trajectories: each robot's estimate and its truth (polylines, world frame, m);
+- static shapes: point parameters (pulleys, anchors) at their estimates with their 3-sigma ellipsoids
+  (axis-aligned, from the per-axis sigmas) and the true points when known;
+- frames: at `FRAMES` times spread over the run, what each robot's model draws of itself at that time
+  (`RobotModel.geometry`: cables, links, ...) and the 3-sigma ellipsoid of its position.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..pipeline import RunResult
+from ..plugins import registry
+from .shapes import Lines, Points, polyline
+
+SCENE_FILE = "scene.json"
+SCENE_VERSION = 1
+FRAMES = 40
+ESTIMATE, TRUTH, SIGMA = "#d62728", "#000000", "#1f77b4"
+
+
+def ellipsoid(label: str, center, sigma, k: float = 3.0) -> dict:
+    """An axis-aligned ellipsoid of semi-axes k * sigma (m) about center."""
+    s = np.zeros(3)
+    s[:len(sigma)] = np.asarray(sigma, float)[:3]
+    return {"kind": "ellipsoid", "label": label, "color": SIGMA, "center": np.asarray(center, float).tolist(),
+            "radii": (k * s).tolist()}
+
+
+def _xyz(values) -> np.ndarray:
+    a = np.asarray(values, float).reshape(len(values), -1)
+    return np.column_stack([a[:, :3], np.zeros((len(a), max(0, 3 - a.shape[1])))])
+
+
+def _point_parameters(result: RunResult) -> list[dict]:
+    shapes = []
+    for robot, params in result.parameters.items():
+        for name, est in params.items():
+            if est.series_t is not None or est.family.vartype.name not in ("point3", "point2"):
+                continue
+            xyz = _xyz([est.family.vartype.to_list(v) for v in est.values])
+            shapes.append(Points(f"{robot}/{name}", xyz, ESTIMATE).to_json())
+            if est.sigma is not None:
+                shapes += [ellipsoid(f"{robot}/{name}[{i}] 3-sigma", p, s) for i, (p, s) in enumerate(zip(xyz, est.sigma))]
+            true = result.truth.calibration.get(robot, {}).get(name)
+            if true is not None and true.get("values") is not None:
+                shapes.append(Points(f"{robot}/{name} truth", _xyz(true["values"]), TRUTH, 4.0).to_json())
+    return shapes
+
+
+def _trajectories(result: RunResult) -> list[dict]:
+    out = []
+    for robot, traj in result.trajectories.items():
+        out.append(Lines(f"{robot} estimate", polyline(traj.pose_array()[:, :3]), ESTIMATE).to_json())
+        truth = result.truth.trajectories.get(robot)
+        if truth is not None:
+            out.append(Lines(f"{robot} truth", polyline(truth.pose_array()[:, :3]), TRUTH, 1.0).to_json())
+    return out
+
+
+def _state_at(result: RunResult, robot: str, t: float) -> tuple[dict[str, Any], int | None]:
+    """The robot's per-state values nearest to time t: {family: value} (`pose` as a Pose3), and the index of
+    its trajectory's sample (None without a trajectory)."""
+    state, index = {}, None
+    traj = result.trajectories.get(robot)
+    if traj is not None:
+        index = int(np.argmin(np.abs(traj.t - t)))
+        state["pose"] = traj.poses()[index]
+    for (r, family), series in result.states.items():
+        if r == robot and len(series.t):
+            state[family] = series.values[int(np.argmin(np.abs(series.t - t)))]
+    return state, index
+
+
+def _frame(result: RunResult, models: dict, calibrated: dict, t: float) -> list[dict]:
+    shapes = []
+    for robot, model in models.items():
+        state, index = _state_at(result, robot, t)
+        if not state:
+            continue
+        shapes += [s.to_json() for s in model.geometry(robot, calibrated[robot], state)]
+        sigma = result.position_sigma.get(robot)
+        if index is not None and sigma is not None and index < len(sigma):
+            shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), sigma[index]))
+        if index is not None:
+            shapes.append(Points(f"{robot} now", state["pose"].translation()[None], ESTIMATE, 8.0).to_json())
+    return shapes
+
+
+def build_scene(result: RunResult) -> dict:
+    from ..report.outputs import calibrated_description
+    reg = registry()
+    models = {robot: reg.get("robot_models", setup.description.model)()
+              for robot, setup in result.config.robots.items()}
+    calibrated = {robot: calibrated_description(result, robot) for robot in models}
+    spans = [(s.t[0], s.t[-1]) for s in result.trajectories.values() if len(s.t)] + \
+        [(s.t[0], s.t[-1]) for s in result.states.values() if len(s.t)]
+    times = np.linspace(min(a for a, _ in spans), max(b for _, b in spans), FRAMES).tolist() if spans else []
+    static = _point_parameters(result)
+    for robot, model in models.items():  # geometry that does not move (a robot without states)
+        if not _state_at(result, robot, 0.0)[0]:
+            static += [s.to_json() for s in model.geometry(robot, calibrated[robot], {})]
+    return {"fusionkit_scene": SCENE_VERSION, "name": result.config.name, "trajectories": _trajectories(result),
+            "static": static, "times": times, "frames": [_frame(result, models, calibrated, t) for t in times]}
+
+
+def load_scene(folder: Path) -> dict:
+    """scene.json of an output folder; FileNotFoundError / ValueError with the reason."""
+    file = Path(folder) / SCENE_FILE
+    if not file.is_file():
+        raise FileNotFoundError(f"{folder}: no {SCENE_FILE} (expected the output folder of `fusionkit run`)")
+    scene = json.loads(file.read_text())
+    if scene.get("fusionkit_scene") != SCENE_VERSION:
+        raise ValueError(f"{file}: not a fusionkit scene of version {SCENE_VERSION}")
+    return scene
+

@@ -1,0 +1,119 @@
+"""The 3-D scene of a run (scene.json) and `fusionkit view`: what the scene holds (trajectories, point
+parameters with 3-sigma ellipsoids, the cable robot drawing itself through RobotModel.geometry), the PNG
+written by matplotlib when open3d is missing or crashes, and the refusals (existing file, not an output)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fusionkit.view as view
+from fusionkit.cli.main import main
+from fusionkit.view.scene import FRAMES, SCENE_FILE
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("view") / "quick"
+    assert main(["run", str(REPO / "configs" / "quickstart.yaml"), "--out", str(out), "-q",
+                 "--set", "sources.0.params.duration=8"]) == 0
+    return out
+
+
+def _scene(folder: Path) -> dict:
+    return json.loads((folder / SCENE_FILE).read_text())
+
+
+def _by_label(shapes: list[dict], label: str) -> list[dict]:
+    return [s for s in shapes if s["label"] == label]
+
+
+def test_the_scene_holds_the_trajectories_the_pulleys_with_3_sigma_ellipsoids_and_their_truth(run_folder):
+    scene = _scene(run_folder)
+    report = json.loads((run_folder / "report.json").read_text())
+    est = _by_label(scene["trajectories"], "cdpr estimate")[0]
+    traj = np.loadtxt(run_folder / "trajectories" / "cdpr.tum")
+    np.testing.assert_allclose(np.asarray(est["segments"])[:, 0], traj[:-1, 1:4], atol=1e-9)
+    assert _by_label(scene["trajectories"], "cdpr truth")
+    pulley = report["parameters"]["cdpr"]["pulley"]
+    np.testing.assert_allclose(_by_label(scene["static"], "cdpr/pulley")[0]["xyz"], pulley["values"], atol=1e-9)
+    ellipse = _by_label(scene["static"], "cdpr/pulley[2] 3-sigma")[0]
+    np.testing.assert_allclose(ellipse["radii"], 3 * np.asarray(pulley["sigma"][2]), rtol=1e-9)
+    assert len(_by_label(scene["static"], "cdpr/pulley truth")[0]["xyz"]) == 4
+
+
+def test_the_cable_robot_draws_its_cables_from_each_pulley_to_its_attachment_at_each_time(run_folder):
+    scene = _scene(run_folder)
+    assert len(scene["times"]) == FRAMES == len(scene["frames"])
+    pulleys = np.asarray(_by_label(scene["static"], "cdpr/pulley")[0]["xyz"])
+    traj = np.loadtxt(run_folder / "trajectories" / "cdpr.tum")
+    for k in (0, FRAMES // 2, FRAMES - 1):
+        frame = scene["frames"][k]
+        cables = np.asarray(_by_label(frame, "cdpr cables")[0]["segments"])
+        np.testing.assert_allclose(cables[:, 0], pulleys, atol=1e-9)
+        now = np.asarray(_by_label(frame, "cdpr now")[0]["xyz"])[0]
+        row = traj[np.argmin(np.abs(traj[:, 0] - scene["times"][k]))]
+        np.testing.assert_allclose(now, row[1:4], atol=1e-9)
+        # the attachments sit within the end effector's size of its origin (arascam-like: < 0.3 m)
+        assert np.linalg.norm(cables[:, 1] - now, axis=1).max() < 0.3
+        assert _by_label(frame, "cdpr position 3-sigma")
+
+
+def test_report_html_embeds_the_3d_render(run_folder):
+    html = (run_folder / "report.html").read_text()
+    assert (run_folder / "plots" / "scene_3d.png").stat().st_size > 10_000
+    assert "alt='scene_3d.png'" in html
+
+
+def test_view_png_without_open3d_draws_with_matplotlib_and_says_so(run_folder, tmp_path, monkeypatch, capsys):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(view.importlib.util, "find_spec", lambda name: None if name == "open3d" else real(name))
+    png = tmp_path / "scene.png"
+    assert main(["view", str(run_folder), "--png", str(png), "--time", "4.0"]) == 0
+    out = capsys.readouterr().out
+    assert "open3d is not installed" in out and "drawn with matplotlib" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_an_open3d_process_that_crashes_falls_back_to_matplotlib(run_folder, tmp_path, monkeypatch):
+    crash = tmp_path / "crash.py"
+    crash.write_text("import os\nos.abort()\n")  # what open3d does without an OpenGL context
+    monkeypatch.setattr(view, "RENDERER", crash)
+    real = importlib.util.find_spec
+    monkeypatch.setattr(view.importlib.util, "find_spec", lambda name: object() if name == "open3d" else real(name))
+    png = tmp_path / "scene.png"
+    note = view.render_png(run_folder, png)
+    assert note.startswith("open3d could not render (exit code") and "drawn with matplotlib" in note
+    assert png.stat().st_size > 10_000
+
+
+def test_view_refuses_to_overwrite_a_file_and_a_folder_without_a_scene(run_folder, tmp_path, capsys):
+    mine = tmp_path / "mine.png"
+    mine.write_bytes(b"user data")
+    assert main(["view", str(run_folder), "--png", str(mine)]) != 0
+    assert "exists; fusionkit writes only new files" in capsys.readouterr().err
+    assert mine.read_bytes() == b"user data"
+    assert main(["view", str(tmp_path), "--png", str(tmp_path / "new.png")]) != 0
+    assert "no scene.json" in capsys.readouterr().err
+    assert not (tmp_path / "new.png").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("open3d") is None,
+                    reason="open3d is not installed (pip install 'fusionkit[view]'); the matplotlib path is tested")
+def test_open3d_renders_the_scene_offscreen(run_folder, tmp_path):
+    png = tmp_path / "o3d.png"
+    note = view.render_png(run_folder, png, backend="open3d")
+    assert png.stat().st_size > 5_000
+    assert note == "" or "drawn with matplotlib" in note  # no OpenGL context on this machine: the fallback
+
+
+def test_the_renderer_script_imports_nothing_of_fusionkit():
+    """It runs in its own process, under any python with open3d and numpy."""
+    text = (Path(view.__file__).with_name("render_open3d.py")).read_text()
+    assert "fusionkit" not in "".join(line for line in text.splitlines() if line.startswith(("import", "from")))
