@@ -252,7 +252,7 @@ class Simulator(Component):
         return {}
 
 
-BUILTIN_COMMANDS = ("run", "validate", "plugins", "simulate")  # fusionkit's own; a plugin may not take them
+BUILTIN_COMMANDS = ("run", "validate", "plugins", "simulate", "view")  # fusionkit's own; a plugin may not take them
 
 
 class Command(ABC):

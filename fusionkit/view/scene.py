@@ -73,7 +73,7 @@ def _state_at(result: RunResult, robot: str, t: float) -> tuple[dict[str, Any], 
         index = int(np.argmin(np.abs(traj.t - t)))
         state["pose"] = traj.poses()[index]
     for (r, family), series in result.states.items():
-        if r == robot and len(series.t):
+        if r == robot and len(series.t) and family not in state:  # a trajectory's poses are Pose3 (planar: lifted)
             state[family] = series.values[int(np.argmin(np.abs(series.t - t)))]
     return state, index
 

@@ -87,4 +87,4 @@ def test_error_vs_time_plot_is_written_when_truth_exists_and_not_without(simulat
     png = out / "plots" / "error_vs_time_cam.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["run", str(without_truth(simulated, tmp_path, None)), "--out", str(tmp_path / "no_truth")]) == 0
-    assert sorted(p.name for p in (tmp_path / "no_truth" / "plots").iterdir()) == ["residuals.png", "trajectory.png"]
+    assert sorted(p.name for p in (tmp_path / "no_truth" / "plots").iterdir()) == ["residuals.png", "scene_3d.png", "trajectory.png"]
