@@ -136,6 +136,15 @@ class SerialChain:
             self.model.jointPlacements[self.jids[j]] = self.nominal[j] * exp_twist(delta)
         self._perturbed = set(placements)
 
+    def joint_positions(self, q: np.ndarray) -> np.ndarray:
+        """Origins of the moving joints and of the tool frame (n + 1, 3) in the base frame (m), nominal
+        placements, at joint values q."""
+        self._set_placements({})
+        pin.forwardKinematics(self.model, self.data, self._configuration(np.asarray(q, float)))
+        universe = [self.data.oMi[jid].homogeneous for jid in self.jids]
+        universe.append(pin.updateFramePlacement(self.model, self.data, self.tool_id).homogeneous)
+        return np.array([(self.base_T_universe @ T)[:3, 3] for T in universe])
+
     def flange(self, q: np.ndarray, placements: dict[int, np.ndarray] | None = None,
                jacobians: bool = False) -> Flange:
         """base_T_tool at joint values q (offsets already added), with placement errors {joint index:

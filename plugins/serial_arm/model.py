@@ -21,7 +21,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from fusionkit.api import RobotDescription, RobotModel
+import numpy as np
+
+from fusionkit.api import Lines, Points, RobotDescription, RobotModel
 
 from .chain import ChainError, SerialChain
 from .urdf import urdf_path
@@ -142,6 +144,23 @@ class SerialArmModel(RobotModel):
                             raise desc.error(path + ("joints",), f"joint {j!r}{'' if axis == 'offset' else ' ' + axis} "
                                              f"is already in another {key} group")
                         taken.add((key, j, axis))
+
+    def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
+        """The arm as a polyline through its joints' origins to the tool frame, at the state's joint vector plus
+        the calibrated joint offsets, placed by the calibrated base pose (nominal link placements)."""
+        arm = arm_of(calibrated)
+        q = next((np.asarray(v, float) for k, v in state.items() if k != "pose" and np.size(v) == arm.chain.n), None)
+        if q is None:
+            return []
+        q = q.copy()
+        for group in arm.offsets:
+            q[list(group.joints)] += np.asarray(calibrated.parameters[group.parameter].values, float).ravel()
+        p = arm.chain.joint_positions(q)
+        if arm.base is not None:
+            base = calibrated.parameters[arm.base]
+            p = base.vartype.from_list(base.values[0]).transformFrom(p.T).T
+        return [Lines(f"{robot} links", np.stack([p[:-1], p[1:]], axis=1), "#8c564b", 3.0),
+                Points(f"{robot} joints", p[:-1], "#8c564b", 5.0), Points(f"{robot} tool", p[-1:], "#e377c2", 6.0)]
 
     def outputs(self, robot: str, calibrated: RobotDescription) -> dict[str, str]:
         """`robots/<robot>.urdf`: the URDF with the calibrated parameters built in (export.py)."""

@@ -117,3 +117,27 @@ def test_the_renderer_script_imports_nothing_of_fusionkit():
     """It runs in its own process, under any python with open3d and numpy."""
     text = (Path(view.__file__).with_name("render_open3d.py")).read_text()
     assert "fusionkit" not in "".join(line for line in text.splitlines() if line.startswith(("import", "from")))
+
+
+def test_a_serial_arm_draws_its_links_to_the_flange_the_calibrated_kinematics_reach(tmp_path):
+    from fusionkit.config.loader import load_config
+    from fusionkit.pipeline import estimate
+    from fusionkit.report.outputs import calibrated_description
+    from fusionkit.view.scene import build_scene
+    from fusionkit_plugins.serial_arm.model import arm_of
+
+    result = estimate(load_config(REPO / "configs" / "arm_calibration.yaml"))
+    scene = build_scene(result)
+    k = len(scene["times"]) // 2
+    tool = np.asarray(_by_label(scene["frames"][k], "arm tool")[0]["xyz"])[0]
+    links = np.asarray(_by_label(scene["frames"][k], "arm links")[0]["segments"])
+    np.testing.assert_allclose(links[-1, 1], tool, atol=1e-12)
+    desc = calibrated_description(result, "arm")
+    arm = arm_of(desc)
+    series = [s for (robot, _), s in result.states.items() if robot == "arm"][0]
+    q = np.asarray(series.values[int(np.argmin(np.abs(series.t - scene["times"][k])))], float).copy()
+    for group in arm.offsets:
+        q[list(group.joints)] += np.asarray(desc.parameters[group.parameter].values, float).ravel()
+    base = desc.parameters[arm.base]
+    flange = base.vartype.from_list(base.values[0]).matrix() @ arm.chain.flange(q).T
+    np.testing.assert_allclose(tool, flange[:3, 3], atol=1e-9)
