@@ -162,18 +162,26 @@ def strided_pairs(ka: np.ndarray, stride: int) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(a_out), np.concatenate(b_out)
 
 
+# the keys of the initializers that read an odometry pose stream (`stream`) and an IMU stream (`imu`)
+ODOMETRY_AND_IMU = {"robot": NAME, "stream": NAME, "imu": NAME, "max_gap": {"type": "number", "exclusiveMinimum": 0},
+                    "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
+                                "default": list(IMU_COLUMNS)},
+                    "gravity": {"type": "number", "minimum": 0, "default": GRAVITY}}
+
+
+def check_odometry_and_imu(spec: Spec, scope) -> None:
+    scope.require_states(spec, "robot", "pose3")
+    scope.require_columns(spec, "stream", POSE_COLUMNS)
+    scope.require_columns(spec, "imu", tuple(spec["columns"]))
+
+
 class OdometryScaleFromImu(Initializer):
     name = "imu.odometry_scale"
     summary = ("initial scale of a scaled odometry (monocular VO) from the IMU: least squares over the scale and "
                "the velocities of every tenth state, zero bias")
     robot_fields = ("robot",)
     stream_fields = ("stream", "imu")
-    schema = {"type": "object",
-              "properties": {"robot": NAME, "stream": NAME, "imu": NAME, "scale": NAME,
-                             "max_gap": {"type": "number", "exclusiveMinimum": 0},
-                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
-                                         "default": list(IMU_COLUMNS)},
-                             "gravity": {"type": "number", "minimum": 0, "default": GRAVITY}},
+    schema = {"type": "object", "properties": {**ODOMETRY_AND_IMU, "scale": NAME},
               "required": ["robot", "stream", "imu", "scale"], "additionalProperties": False}
     # states per pair: the odometry's noise enters the velocity changes as a second difference, which over
     # one state step (50 ms) is larger than the motion's and shrinks the scale (errors in the regressor:
@@ -181,9 +189,7 @@ class OdometryScaleFromImu(Initializer):
     STRIDE = 10
 
     def check(self, spec: Spec, scope) -> None:
-        scope.require_states(spec, "robot", "pose3")
-        scope.require_columns(spec, "stream", POSE_COLUMNS)
-        scope.require_columns(spec, "imu", tuple(spec["columns"]))
+        check_odometry_and_imu(spec, scope)
         scope.require_parameter(spec, "robot", "scale", "scalar")
 
     def initialize(self, ctx, spec: Spec) -> None:
@@ -250,19 +256,12 @@ class BridgeOdometryGaps(Initializer):
                "state before it, levelled by gravity; the states after it moved rigidly to continue from the prediction")
     robot_fields = ("robot",)
     stream_fields = ("stream", "imu")
-    schema = {"type": "object",
-              "properties": {"robot": NAME, "stream": NAME, "imu": NAME,
-                             "max_gap": {"type": "number", "exclusiveMinimum": 0},
-                             "columns": {"type": "array", "items": NAME, "minItems": 6, "maxItems": 6,
-                                         "default": list(IMU_COLUMNS)},
-                             "gravity": {"type": "number", "minimum": 0, "default": 9.81}},
+    schema = {"type": "object", "properties": ODOMETRY_AND_IMU,
               "required": ["robot", "stream", "imu", "max_gap"], "additionalProperties": False}
     WINDOW = 20  # states before a gap: their positions give its starting velocity, their IMU its tilt
 
     def check(self, spec: Spec, scope) -> None:
-        scope.require_states(spec, "robot", "pose3")
-        scope.require_columns(spec, "stream", POSE_COLUMNS)
-        scope.require_columns(spec, "imu", tuple(spec["columns"]))
+        check_odometry_and_imu(spec, scope)
 
     def initialize(self, ctx, spec: Spec) -> None:
         """Runs after the odometry set the poses (pose.dead_reckoning); a gap is a run of state pairs with no
