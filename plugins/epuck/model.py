@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit.api import RobotDescription, RobotModel, robot_description_data
+from fusionkit.api import Lines, RobotDescription, RobotModel, robot_description_data
 
 from .irmodel import Bank
 from .walls import segments_of
@@ -156,6 +156,12 @@ class WallMapModel(RobotModel):
                              "polygons": {"type": "array", "items": {"type": "array", "items": POINT,
                                                                      "minItems": 3}}},
               "additionalProperties": False}
+
+    def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
+        """The walls, on the floor (z = 0)."""
+        walls = walls_of(calibrated)
+        return [Lines(f"{robot} walls", np.concatenate([walls, np.zeros(walls.shape[:2] + (1,))], axis=2),
+                      "#7f7f7f", 2.0)]
 
     def check_description(self, desc: RobotDescription) -> None:
         """At least one wall; no segment (or polygon edge) of zero length."""

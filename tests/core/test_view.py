@@ -141,3 +141,18 @@ def test_a_serial_arm_draws_its_links_to_the_flange_the_calibrated_kinematics_re
     base = desc.parameters[arm.base]
     flange = base.vartype.from_list(base.values[0]).matrix() @ arm.chain.flange(q).T
     np.testing.assert_allclose(tool, flange[:3, 3], atol=1e-9)
+
+
+def test_a_wall_map_draws_its_walls_on_the_floor_once():
+    from fusionkit.config.loader import load_config
+    from fusionkit.pipeline import estimate
+    from fusionkit.view.scene import build_scene
+    from fusionkit_plugins.epuck.model import walls_of
+
+    config = load_config(REPO / "configs" / "epuck_localization.yaml", ["sources.0.params.duration=5"])
+    scene = build_scene(estimate(config))
+    walls = np.asarray(_by_label(scene["static"], "arena walls")[0]["segments"])
+    expected = walls_of(config.robots["arena"].description)
+    np.testing.assert_allclose(walls[:, :, :2], expected)
+    assert np.all(walls[:, :, 2] == 0)
+    assert not any(_by_label(frame, "arena walls") for frame in scene["frames"])
