@@ -120,8 +120,9 @@ def handwritten_graph(odom: np.ndarray, absolute: np.ndarray) -> tuple[gtsam.Non
 
 # fusionkit's batch LM defaults, written out (bench_batch warns if fusionkit's change): tolerances
 # of fusionkit/solve/batch.py, lambda schedule of fusionkit.solve.levenberg.DampingSettings, which
-# damps lambda * I like GTSAM's default (no diagonalDamping)
-LM_DEFAULTS = {"lambda_initial": 1e-5, "lambda_factor": 10.0, "lambda_upper": 1e5, "lambda_lower": 0.0}
+# damps lambda * diag(J^T J) like GTSAM's diagonalDamping (same min/max diagonal 1e-6 / 1e32)
+LM_DEFAULTS = {"lambda_initial": 1e-5, "lambda_factor": 10.0, "lambda_upper": 1e5, "lambda_lower": 0.0,
+               "min_diagonal": 1e-6, "max_diagonal": 1e32, "scaled": True}
 
 
 def lm_params() -> gtsam.LevenbergMarquardtParams:
@@ -135,7 +136,7 @@ def lm_params() -> gtsam.LevenbergMarquardtParams:
     p.setlambdaFactor(d["lambda_factor"])
     p.setlambdaUpperBound(d["lambda_upper"])
     p.setlambdaLowerBound(d["lambda_lower"])
-    p.setDiagonalDamping(False)
+    p.setDiagonalDamping(True)
     return p
 
 

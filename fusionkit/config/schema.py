@@ -64,6 +64,7 @@ CONFIG_SCHEMA = {
             "properties": {
                 "type": {"enum": ["batch", "isam2", "fixed_lag"], "default": "batch"},
                 "method": {"enum": ["lm", "gn", "dogleg"], "default": "lm"},
+                "damping": {"enum": ["marquardt", "levenberg"], "default": "marquardt"},
                 "factorization": {"enum": ["cholesky", "qr"]},  # default by type: SOLVER_TYPE_DEFAULTS
                 "ordering": {"enum": ["auto", "colamd", "metis"], "default": "auto"},
                 "max_iterations": {"type": "integer", "minimum": 1, "default": 100},

@@ -63,10 +63,12 @@ def time_steps(problem: Problem) -> Iterator[tuple[float, list, list[int]]]:
         yield t, records, new
 
 
-def warm_start(problem: Problem, steps: list, seconds: float) -> tuple[list, gtsam.Values, float, list]:
-    """Merge the time steps up to `seconds` after the first state into one, solve it with batch LM from
-    the initial values; returns (its factor records, their solution, last merged time, the other steps)."""
+def warm_start(problem: Problem, steps: list, settings: dict) -> tuple[list, gtsam.Values, float, list]:
+    """Merge the time steps up to `warmup` seconds after the first state into one, solve it with batch LM
+    (the settings' `damping`) from the initial values; returns (its factor records, their solution, last
+    merged time, the other steps)."""
     from .levenberg import DampingSettings, levenberg_marquardt
+    seconds = settings["warmup"]
     finite = [t for t, _, _ in steps if np.isfinite(t)]
     end = (finite[0] if finite else 0.0) + seconds
     records, keys, rest = [], [], []
@@ -79,7 +81,7 @@ def warm_start(problem: Problem, steps: list, seconds: float) -> tuple[list, gts
         else:
             rest.append((t, step_records, new))
     values, _ = levenberg_marquardt(GraphEvaluator(records), value_subset(problem, keys), 1e-6, 1e-9, 100,
-                                    DampingSettings())
+                                    DampingSettings(scaled=settings["damping"] == "marquardt"))
     return records, values, last, rest
 
 
@@ -170,7 +172,7 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     steps, warmup, estimate = list(time_steps(problem)), 0.0, gtsam.Values()
     if settings["warmup"] > 0:
         tic = time.perf_counter()
-        first, values, t, steps = warm_start(problem, steps, settings["warmup"])
+        first, values, t, steps = warm_start(problem, steps, settings)
         estimate, _ = _timed_step(problem, t, lambda: _isam2_update(isam, containers, first, values))
         warmup = time.perf_counter() - tic
     for i, (t, records, new) in enumerate(steps):
@@ -208,7 +210,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     steps, warm_values, warmup, early = list(time_steps(problem)), None, 0.0, []
     if settings["warmup"] > 0:
         tic = time.perf_counter()
-        first, warm_values, t, steps = warm_start(problem, steps, settings["warmup"])
+        first, warm_values, t, steps = warm_start(problem, steps, settings)
         steps.insert(0, (t, first, list(warm_values.keys())))
         # states older than the window leave inside the first update: keep their warm-up solution
         early = [k for k in warm_values.keys() if problem.key_time[k] != float("-inf")

@@ -132,7 +132,8 @@ class ImuVoSimulator(Simulator):
     def config(self, params: dict) -> dict:
         """States at the camera rate over the IMU's span (they go on through the dropout); the origin prior,
         the scaled VO (no pair across a gap) and the preintegrated IMU; the VO's scale from the IMU, poses
-        from the VO at that scale and across the dropout from the IMU, velocities from them; batch Levenberg-Marquardt."""
+        from the VO at that scale and across the dropout from the IMU, velocities from them; batch
+        Levenberg-Marquardt with Levenberg's damping (lambda I: Marquardt's crawls across the dropout)."""
         p = {**self.defaults, **params}
         vo_sigma = {k: max(v, 1e-4) for k, v in p["vo_sigma"].items()}
         return {
@@ -152,4 +153,4 @@ class ImuVoSimulator(Simulator):
                 {"type": "imu.bridge_gaps", "robot": ROBOT, "stream": "vo", "imu": "imu",
                  "max_gap": 1.5 / p["camera_rate"]},
                 {"type": "imu.velocity", "robot": ROBOT}],
-            "solver": {"type": "batch", "method": "lm"}}
+            "solver": {"type": "batch", "method": "lm", "damping": "levenberg"}}

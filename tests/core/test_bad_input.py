@@ -370,7 +370,7 @@ def test_bad_override_paths_say_why_the_path_is_invalid(out, capsys, assignment,
     ("solver.type=isam", "solver.type", "got 'isam'; expected one of: batch, isam2, fixed_lag"),
     ("factors.0.sigma.rotation=abc", "factors[0].sigma.rotation", "got 'abc'; expected a number > 0"),
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
-    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: a_posteriori_sigmas, absolute_tolerance, factorization, lag, "
+    ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: a_posteriori_sigmas, absolute_tolerance, damping, factorization, lag, "
                                      "marginals, max_cost_ratio, max_iterations, method, new_states, ordering, refine, relative_tolerance, "
                                      "relinearize_threshold, type, warmup")),
     ("solver.refine={vo: {sigma: 1}}", "solver.refine.vo",

@@ -95,7 +95,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     err = _schema_error(CONFIG_SCHEMA, "robots: {cam: {description: r.yaml}}\nfactors: [{type: a}]\n"
                                        "solver:\n  type: batch\n  metod: lm\n")
     assert str(err) == ("c.yaml:5: solver.metod: unknown key 'metod'; accepted keys: a_posteriori_sigmas, "
-                        "absolute_tolerance, "
+                        "absolute_tolerance, damping, "
                         "factorization, lag, marginals, max_cost_ratio, max_iterations, method, new_states, ordering, "
                         "refine, relative_tolerance, "
                         "relinearize_threshold, type, warmup")
@@ -108,7 +108,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     ("{max_cost_ratio: .nan}", "c.yaml:3: solver.max_cost_ratio: got nan; expected a number > 0"),
     ("{max_cost_ratio: abc}", "c.yaml:3: solver.max_cost_ratio: got 'abc'; expected a number > 0"),
     ("{marginals: 3}", "c.yaml:3: solver.marginals: got 3; expected true or false"),
-    ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, factorization, "
+    ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, damping, factorization, "
                 "ordering, max_iterations, "
                 "relative_tolerance, absolute_tolerance, lag, warmup, new_states, relinearize_threshold, max_cost_ratio, marginals, "
                 "a_posteriori_sigmas, refine")),
@@ -206,7 +206,7 @@ def test_scaled_vo_loads_with_overrides_applied():
                                       "factors[1].sigma.translation=2e-2"])
     assert config.name == "scaled_vo_mocap" and config.seed == 0
     # the solver section with its defaults: the schema's, then iSAM2's factorization and chi-square gate
-    assert config.solver == {"type": "isam2", "method": "lm", "ordering": "auto", "max_iterations": 100,
+    assert config.solver == {"type": "isam2", "method": "lm", "damping": "marquardt", "ordering": "auto", "max_iterations": 100,
                              "relative_tolerance": 1e-6, "absolute_tolerance": 1e-9, "lag": 2.0, "warmup": 0,
                              "new_states": "initial", "relinearize_threshold": 0.01, "marginals": True, "a_posteriori_sigmas": False,
                              "factorization": "qr", "max_cost_ratio": 10.0}
