@@ -178,7 +178,7 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
     if result.config.output["state_covariances"]:
         from .covariances import write_state_covariances
         write_state_covariances(result, out / "covariances")
-    from ..view.scene import SCENE_FILE, build_scene
+    from ..view.scene import SCENE_FILE, build_scene, is_empty
     scene = build_scene(result)
     (out / SCENE_FILE).write_text(json.dumps(scene, default=_json_default))
     if plots:
@@ -186,7 +186,8 @@ def write_outputs(result: RunResult, out: Path, plots: bool = True) -> None:
         from .plots import write_plots
         (out / "plots").mkdir()
         write_plots(result, out / "plots")
-        render_png(scene, out / "plots" / "scene_3d.png")
+        if not is_empty(scene):
+            render_png(scene, out / "plots" / "scene_3d.png")
     from .html import report_html
     (out / "report.html").write_text(report_html(result, out / "plots" if plots else None), encoding="utf-8")
     for robot, setup in result.config.robots.items():  # model-specific files (RobotModel.outputs)

@@ -11,7 +11,7 @@ import tempfile
 from pathlib import Path
 
 from .render_matplotlib import render_png as matplotlib_png
-from .scene import SCENE_FILE, load_scene
+from .scene import SCENE_FILE, is_empty, load_scene
 
 RENDERER = Path(__file__).with_name("render_open3d.py")
 OPEN3D_TIMEOUT = 120  # s: a software-rendered scene takes well under one
@@ -32,10 +32,19 @@ def _open3d(mode: str, folder: Path, *args: str) -> tuple[bool, str]:
     return False, f"open3d could not render ({last[:160]})"
 
 
+def drawable_scene(folder: Path) -> dict:
+    """The output folder's scene; ValueError when it has nothing to draw."""
+    scene = load_scene(folder)
+    if is_empty(scene):
+        raise ValueError(f"{folder}: the run has nothing to draw in 3-D (no trajectory, point parameter or robot "
+                         "geometry)")
+    return scene
+
+
 def render_png(folder: Path, file: Path, time: float | None = None, backend: str = "auto") -> str:
     """Renders the scene of output folder `folder` into the new file `file` (written whole or not at all);
     returns a one-line note when matplotlib drew it instead of open3d, else ''."""
-    scene = load_scene(folder)
+    scene = drawable_scene(folder)
     with tempfile.TemporaryDirectory(dir=file.parent) as tmp:
         part = Path(tmp) / file.name
         note = ""
@@ -52,7 +61,7 @@ def render_png(folder: Path, file: Path, time: float | None = None, backend: str
 def open_window(folder: Path, time: float | None = None) -> str:
     """An interactive open3d window on the scene; without open3d or a display, matplotlib's window.
     Returns a one-line note about the fallback ('' when open3d showed it)."""
-    scene = load_scene(folder)
+    scene = drawable_scene(folder)
     done, why = _open3d("window", folder, "" if time is None else str(time))
     if done:
         return ""

@@ -73,6 +73,7 @@ def draw_scene(scene: dict, time: float | None = None, size: tuple[int, int] = (
            zlim=(mid[2] - half, mid[2] + half), xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
     when = f" at t = {scene['times'][k]:.2f} s" if k is not None else ""
     ax.set_title(f"{scene['name']}{when} (ellipsoids: 3 sigma)", fontsize=10)
-    ax.legend(fontsize=7, loc="upper left")
+    if labelled - {s["label"] for s in shapes if "3-sigma" in s["label"]}:
+        ax.legend(fontsize=7, loc="upper left")
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=0.95)
     return fig

@@ -110,6 +110,11 @@ def build_scene(result: RunResult) -> dict:
             "static": static, "times": times, "frames": [_frame(result, models, calibrated, t) for t in times]}
 
 
+def is_empty(scene: dict) -> bool:
+    """Nothing to draw: no trajectory, no point parameter, no robot geometry at any time."""
+    return not (scene["trajectories"] or scene["static"] or any(scene["frames"]))
+
+
 def load_scene(folder: Path) -> dict:
     """scene.json of an output folder; FileNotFoundError / ValueError with the reason."""
     file = Path(folder) / SCENE_FILE
