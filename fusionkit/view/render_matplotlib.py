@@ -19,7 +19,8 @@ def _ellipsoid_wire(ax, shape: dict) -> None:
 
 def _draw(ax, shape: dict, labelled: set) -> np.ndarray:
     """Draws one shape; returns its points (for the axes' limits)."""
-    label = shape["label"] if shape["label"] not in labelled and "3-sigma" not in shape["label"] else None
+    quiet = "3-sigma" in shape["label"] or " body " in shape["label"]
+    label = shape["label"] if shape["label"] not in labelled and not quiet else None
     labelled.add(shape["label"])
     if shape["kind"] == "points":
         p = np.asarray(shape["xyz"]).reshape(-1, 3)

@@ -4,7 +4,8 @@
 - static shapes: point parameters (pulleys, anchors) at their estimates with their 3-sigma ellipsoids
   (axis-aligned, from the per-axis sigmas) and the true points when known;
 - frames: at `FRAMES` times spread over the run, what each robot's model draws of itself at that time
-  (`RobotModel.geometry`: cables, links, ...) and the 3-sigma ellipsoid of its position.
+  (`RobotModel.geometry`: cables, links, ...), its body frame's axes and the 3-sigma ellipsoid of its
+  position.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from .shapes import Lines, Points, polyline
 SCENE_FILE = "scene.json"
 SCENE_VERSION = 1
 FRAMES = 40
+AXIS_LENGTH = 0.08  # body axes drawn at this fraction of the trajectories' span
 ESTIMATE, TRUTH, SIGMA = "#d62728", "#000000", "#1f77b4"
 
 
@@ -90,7 +92,20 @@ def _frame(result: RunResult, models: dict, calibrated: dict, t: float) -> list[
             shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), sigma[index]))
         if index is not None:
             shapes.append(Points(f"{robot} now", state["pose"].translation()[None], ESTIMATE, 8.0).to_json())
+            shapes += body_axes(robot, state["pose"].matrix(), AXIS_LENGTH * _extent(result))
     return shapes
+
+
+def body_axes(robot: str, T: np.ndarray, length: float) -> list[dict]:
+    """The body frame at pose T (4x4): x, y, z axes of `length` m in red, green, blue."""
+    return [Lines(f"{robot} body {name}", np.stack([T[:3, 3], T[:3, 3] + length * T[:3, i]])[None], color, 2.5).to_json()
+            for i, (name, color) in enumerate(zip("xyz", ("#ff0000", "#00aa00", "#0000ff")))]
+
+
+def _extent(result: RunResult) -> float:
+    """The largest span of the trajectories (m), at least 0.1 m."""
+    spans = [np.ptp(t.pose_array()[:, :3], axis=0).max() for t in result.trajectories.values() if len(t.t)]
+    return max(spans + [0.1])
 
 
 def build_scene(result: RunResult) -> dict:

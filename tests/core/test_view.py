@@ -63,6 +63,12 @@ def test_the_cable_robot_draws_its_cables_from_each_pulley_to_its_attachment_at_
         # the attachments sit within the end effector's size of its origin (arascam-like: < 0.3 m)
         assert np.linalg.norm(cables[:, 1] - now, axis=1).max() < 0.3
         assert _by_label(frame, "cdpr position 3-sigma")
+        x_axis = np.asarray(_by_label(frame, "cdpr body x")[0]["segments"])[0]
+        np.testing.assert_allclose(x_axis[0], now, atol=1e-12)
+        q = row[4:8]  # qx qy qz qw: the body x axis is the rotation's first column
+        R_x = np.array([1 - 2 * (q[1] ** 2 + q[2] ** 2), 2 * (q[0] * q[1] + q[2] * q[3]), 2 * (q[0] * q[2] - q[1] * q[3])])
+        direction = (x_axis[1] - x_axis[0]) / np.linalg.norm(x_axis[1] - x_axis[0])
+        np.testing.assert_allclose(direction, R_x, atol=1e-6)
 
 
 def test_report_html_embeds_the_3d_render(run_folder):
