@@ -10,11 +10,9 @@ import numpy as np
 
 def _ellipsoid_wire(ax, shape: dict) -> None:
     u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 16), np.linspace(0, np.pi, 9))
-    r, c = np.asarray(shape["radii"]), np.asarray(shape["center"])
-    x = c[0] + r[0] * np.cos(u) * np.sin(v)
-    y = c[1] + r[1] * np.sin(u) * np.sin(v)
-    z = c[2] + r[2] * np.cos(v)
-    ax.plot_wireframe(x, y, z, color=shape["color"], linewidth=0.3, alpha=0.5)
+    unit = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1)  # (9, 16, 3)
+    p = unit @ np.asarray(shape["axes"]).T + np.asarray(shape["center"])
+    ax.plot_wireframe(p[..., 0], p[..., 1], p[..., 2], color=shape["color"], linewidth=0.3, alpha=0.5)
 
 
 def _draw(ax, shape: dict, labelled: set) -> np.ndarray:

@@ -40,7 +40,7 @@ def _geometry(shape: dict) -> list:
         lines.paint_uniform_color(_rgb(shape["color"]))
         return [lines]
     sphere = o3d.geometry.TriangleMesh.create_sphere(radius=1.0, resolution=12)
-    vertices = np.asarray(sphere.vertices) * np.maximum(np.asarray(shape["radii"]), 1e-6) + shape["center"]
+    vertices = np.asarray(sphere.vertices) @ np.asarray(shape["axes"]).T + shape["center"]
     sphere.vertices = o3d.utility.Vector3dVector(vertices)
     wire = o3d.geometry.LineSet.create_from_triangle_mesh(sphere)
     wire.paint_uniform_color(_rgb(shape["color"]))

@@ -27,12 +27,15 @@ AXIS_LENGTH = 0.08  # body axes drawn at this fraction of the trajectories' span
 ESTIMATE, TRUTH, SIGMA = "#d62728", "#000000", "#1f77b4"
 
 
-def ellipsoid(label: str, center, sigma, k: float = 3.0) -> dict:
-    """An axis-aligned ellipsoid of semi-axes k * sigma (m) about center."""
-    s = np.zeros(3)
-    s[:len(sigma)] = np.asarray(sigma, float)[:3]
-    return {"kind": "ellipsoid", "label": label, "color": SIGMA, "center": np.asarray(center, float).tolist(),
-            "radii": (k * s).tolist()}
+def ellipsoid(label: str, center, covariance, k: float = 3.0) -> dict:
+    """The k-sigma ellipsoid of a position covariance (3x3, or 2x2 for a planar point, m^2) about center:
+    `axes` holds its semi-axes (m) as columns, along the covariance's principal directions."""
+    c = np.zeros((3, 3))
+    cov = np.asarray(covariance, float)
+    c[:len(cov), :len(cov)] = cov
+    w, v = np.linalg.eigh((c + c.T) / 2)
+    return {"kind": "ellipsoid", "label": label, "color": SIGMA, "center": _xyz([center])[0].tolist(),
+            "axes": (v * (k * np.sqrt(np.clip(w, 0.0, None)))).tolist()}
 
 
 def _xyz(values) -> np.ndarray:
@@ -41,15 +44,22 @@ def _xyz(values) -> np.ndarray:
 
 
 def _point_parameters(result: RunResult) -> list[dict]:
+    """Estimates of point parameters with their 3-sigma ellipsoids (full covariance where the solver gave
+    it, else the per-axis sigmas), and their truth."""
     shapes = []
+    covariances = result.solution.covariances or {}
     for robot, params in result.parameters.items():
         for name, est in params.items():
             if est.series_t is not None or est.family.vartype.name not in ("point3", "point2"):
                 continue
             xyz = _xyz([est.family.vartype.to_list(v) for v in est.values])
             shapes.append(Points(f"{robot}/{name}", xyz, ESTIMATE).to_json())
-            if est.sigma is not None:
-                shapes += [ellipsoid(f"{robot}/{name}[{i}] 3-sigma", p, s) for i, (p, s) in enumerate(zip(xyz, est.sigma))]
+            for i, p in enumerate(xyz):
+                cov = covariances.get(est.family.key(i)) if est.family.indexed else covariances.get(est.family.key())
+                if cov is None and est.sigma is not None:
+                    cov = np.diag(np.asarray(est.sigma[i], float) ** 2)
+                if cov is not None:
+                    shapes.append(ellipsoid(f"{robot}/{name}[{i}] 3-sigma", p, cov))
             true = result.truth.calibration.get(robot, {}).get(name)
             if true is not None and true.get("values") is not None:
                 shapes.append(Points(f"{robot}/{name} truth", _xyz(true["values"]), TRUTH, 4.0).to_json())
@@ -87,13 +97,31 @@ def _frame(result: RunResult, models: dict, calibrated: dict, t: float) -> list[
         if not state:
             continue
         shapes += [s.to_json() for s in model.geometry(robot, calibrated[robot], state)]
-        sigma = result.position_sigma.get(robot)
-        if index is not None and sigma is not None and index < len(sigma):
-            shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), sigma[index]))
+        cov = _position_covariance(result, robot, state.get("pose"), index)
+        if cov is not None:
+            shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), cov))
         if index is not None:
             shapes.append(Points(f"{robot} now", state["pose"].translation()[None], ESTIMATE, 8.0).to_json())
             shapes += body_axes(robot, state["pose"].matrix(), AXIS_LENGTH * _extent(result))
     return shapes
+
+
+def _position_covariance(result: RunResult, robot: str, pose, index: int | None) -> np.ndarray | None:
+    """World-frame position covariance (3x3, m^2) of the trajectory's sample `index`: the pose's tangent
+    covariance (translation in body axes) rotated into the world; None without one."""
+    if index is None:
+        return None
+    family = result.problem.states[robot].family
+    present = [k for k in family.keys(range(len(result.problem.states[robot]))) if k in result.solution.covariances]
+    if len(present) != len(result.trajectories[robot].t):
+        return None
+    cov = result.solution.covariances[present[index]]
+    R = pose.rotation().matrix()
+    if family.vartype.name == "pose2":  # [x, y, theta]: x, y in body axes
+        c = np.zeros((3, 3))
+        c[:2, :2] = cov[:2, :2]
+        return R @ c @ R.T
+    return R @ cov[3:, 3:] @ R.T
 
 
 def body_axes(robot: str, T: np.ndarray, length: float) -> list[dict]:

@@ -43,8 +43,11 @@ def test_the_scene_holds_the_trajectories_the_pulleys_with_3_sigma_ellipsoids_an
     assert _by_label(scene["trajectories"], "cdpr truth")
     pulley = report["parameters"]["cdpr"]["pulley"]
     np.testing.assert_allclose(_by_label(scene["static"], "cdpr/pulley")[0]["xyz"], pulley["values"], atol=1e-9)
-    ellipse = _by_label(scene["static"], "cdpr/pulley[2] 3-sigma")[0]
-    np.testing.assert_allclose(ellipse["radii"], 3 * np.asarray(pulley["sigma"][2]), rtol=1e-9)
+    # the ellipsoid's semi-axes A (columns) give back the 3-sigma covariance: A A^T = 9 Sigma, whose diagonal
+    # is 9 sigma^2 per axis
+    A = np.asarray(_by_label(scene["static"], "cdpr/pulley[2] 3-sigma")[0]["axes"])
+    np.testing.assert_allclose(np.sqrt(np.diag(A @ A.T)), 3 * np.asarray(pulley["sigma"][2]), rtol=1e-6)
+    assert np.abs(A @ A.T - np.diag(np.diag(A @ A.T))).max() > 0  # oriented: the pulleys' x-z correlation
     assert len(_by_label(scene["static"], "cdpr/pulley truth")[0]["xyz"]) == 4
 
 
