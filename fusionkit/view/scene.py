@@ -25,6 +25,7 @@ SCENE_VERSION = 1
 FRAMES = 40
 AXIS_LENGTH = 0.08  # body axes drawn at this fraction of the trajectories' span
 ESTIMATE, TRUTH, SIGMA = "#d62728", "#000000", "#1f77b4"
+ROBOT_COLORS = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")  # estimates, robot by robot
 
 
 def ellipsoid(label: str, center, covariance, k: float = 3.0) -> dict:
@@ -69,11 +70,15 @@ def _point_parameters(result: RunResult) -> list[dict]:
 def _trajectories(result: RunResult) -> list[dict]:
     out = []
     for robot, traj in result.trajectories.items():
-        out.append(Lines(f"{robot} estimate", polyline(traj.pose_array()[:, :3]), ESTIMATE).to_json())
+        out.append(Lines(f"{robot} estimate", polyline(traj.pose_array()[:, :3]), _color(result, robot)).to_json())
         truth = result.truth.trajectories.get(robot)
         if truth is not None:
             out.append(Lines(f"{robot} truth", polyline(truth.pose_array()[:, :3]), TRUTH, 1.0).to_json())
     return out
+
+
+def _color(result: RunResult, robot: str) -> str:
+    return ROBOT_COLORS[list(result.trajectories).index(robot) % len(ROBOT_COLORS)]
 
 
 def _state_at(result: RunResult, robot: str, t: float) -> tuple[dict[str, Any], int | None]:
@@ -101,7 +106,7 @@ def _frame(result: RunResult, models: dict, calibrated: dict, t: float) -> list[
         if cov is not None:
             shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), cov))
         if index is not None:
-            shapes.append(Points(f"{robot} now", state["pose"].translation()[None], ESTIMATE, 8.0).to_json())
+            shapes.append(Points(f"{robot} now", state["pose"].translation()[None], _color(result, robot), 8.0).to_json())
             shapes += body_axes(robot, state["pose"].matrix(), AXIS_LENGTH * _extent(result))
     return shapes
 
