@@ -154,6 +154,13 @@ class FactorType(Component):
         that say the model misses something. Default: none."""
         return []
 
+    def baseline(self, ctx: "BuildContext", spec: Spec, values: "Any") -> dict[str, "Stream"]:
+        """Optional (API 1.6): what this entry's sensor alone says of its robot's trajectory at the estimated
+        calibration (`values`), as {name: stream with columns x, y, z (m, world frame)}; with a true
+        trajectory, report.json compares each with the truth beside the fused estimate
+        (`evaluation.baselines.<robot>.<name>`). Names are identifiers (no dots). Default: none."""
+        return {}
+
     @classmethod
     @abstractmethod
     def example(cls, rng: "np.random.Generator"):

@@ -22,7 +22,9 @@ from .eval.states import StateSeries, state_errors, state_series
 from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
 from .eval.timebase import check_truth_clock
-from .eval.trajectory import fit_alignment, matched_positions, position_consistency, trajectory_errors
+from .data.association import nearest
+from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions, position_consistency,
+                              trajectory_errors)
 from .graph.builder import BuildContext, Problem, state_times
 from .graph.keys import STATE, TIME_VARYING, Family
 from .graph.variables import component_names
@@ -304,8 +306,13 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     if problem.measurement_states is not None:  # time offsets whose estimate left their samples' windows
         problem.notes.extend(problem.measurement_states.beyond_windows(solution.values))
     reg = registry()
-    for spec in config.factors:  # what each entry's factor type says of the estimate
-        problem.notes.extend(reg.get("factor_types", spec.type)().review(problem.context, spec, solution.values))
+    baselines: dict[str, dict[str, Stream]] = {}
+    for spec in config.factors:  # what each entry's factor type says of the estimate, and its sensor alone
+        factor_type = reg.get("factor_types", spec.type)()
+        problem.notes.extend(factor_type.review(problem.context, spec, solution.values))
+        if spec.get("robot") in truth.trajectories:
+            for name, stream in factor_type.baseline(problem.context, spec, solution.values).items():
+                baselines.setdefault(spec["robot"], {})[name] = stream
     timings["solve_s"] = solution.seconds
     _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
@@ -314,8 +321,34 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     evaluation = evaluate(config, trajectories, position_sigma, parameters, truth)
     evaluation.update(_state_evaluation(states, truth))
     evaluation["residuals_by_entry"] = residuals_by_entry(problem, solution.values)
+    if baselines:
+        evaluation["baselines"] = baseline_errors(baselines, trajectories, truth)
     return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
                      timings, streams, states)
+
+
+def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:
+    """robot -> baseline name -> position RMSE (m) against the truth at the baseline's times (nearest true
+    pose within 0.01 s, no alignment), beside the fused estimate's at the same times."""
+    out: dict[str, dict] = {}
+    for robot, named in baselines.items():
+        ref = truth.trajectories[robot]
+        fused = trajectories.get(robot)
+        for name, stream in named.items():
+            m = nearest(ref.t, stream.t, MATCH_TOLERANCE)
+            if not len(m.row):
+                continue
+            xyz = np.column_stack([stream.column(c) for c in "xyz"])[m.row]
+            true = ref.pose_array()[m.state, :3]
+            entry = {"position_rmse_m": float(np.sqrt(np.mean(np.sum((xyz - true) ** 2, axis=1)))),
+                     "matched": int(len(m.row))}
+            if fused is not None:
+                f = nearest(fused.t, stream.t[m.row], MATCH_TOLERANCE)
+                if len(f.row) == len(m.row):
+                    entry["fused_position_rmse_m"] = float(np.sqrt(np.mean(np.sum(
+                        (fused.pose_array()[f.state, :3] - true[f.row]) ** 2, axis=1))))
+            out.setdefault(robot, {})[name] = entry
+    return out
 
 
 def _state_evaluation(states: dict[tuple[str, str], StateSeries], truth: Truth) -> dict:

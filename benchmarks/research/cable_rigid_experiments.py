@@ -27,7 +27,6 @@ from fusionkit.api import nearest
 from fusionkit.config.loader import RunConfig
 from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, CdprSimulator
 
-from .cable_rigid_baselines import localization_errors
 
 SEQUENCES = ("dynamic", "smooth")  # the thesis's sequences 01 and 12
 CABLE_ENTRY = "factors[2]:cable.length"
@@ -97,6 +96,16 @@ def normalized_position_errors(result) -> np.ndarray:
 def consistency_table(z: np.ndarray) -> dict[str, list[float]]:
     """Share (%) of |z| inside 1, 2, 3 per axis."""
     return {axis: [float(100 * np.mean(np.abs(z[:, i]) <= k)) for k in (1, 2, 3)] for i, axis in enumerate("xyz")}
+
+
+def localization_errors(result, robot: str) -> dict[str, float]:
+    """Thesis Table 4.1's comparison from one run: position RMSE (m) against the truth of forward kinematics
+    alone, visual odometry alone (report.json evaluation.baselines: cable.length and pose.scaled_relative)
+    and the fused graph, at the state times."""
+    b = result.evaluation["baselines"][robot]
+    return {"forward_kinematics": b["forward_kinematics"]["position_rmse_m"],
+            "visual_odometry": b["visual_odometry"]["position_rmse_m"],
+            "fused": b["visual_odometry"]["fused_position_rmse_m"]}
 
 
 def table_4_1(motion: str, seeds: range) -> dict:

@@ -8,8 +8,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec, vectorized_factor
+from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec, Stream,
+                           vectorized_factor)
 
+from .kinematics import forward_kinematics
 from .model import cable_robot
 from .pulley import pulley_cables
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
@@ -79,6 +81,25 @@ class CableLength(FactorType):
                 continue
             for pose, zk, t in zip(poses, z, times):
                 ctx.add(range_factor(pose, pulley, float(zk), noise, mount, offset), spec, t)
+
+    def baseline(self, ctx, spec: Spec, values) -> dict:
+        """`forward_kinematics`: the end-effector positions from this entry's encoder readings alone at the
+        estimated pulleys and offsets (rigid straight cables, the end effector level as the kinematics
+        assumes: thesis Table 4.1's FK column), at the readings' times; none with fewer than 3 cables."""
+        robot = spec["robot"]
+        cdpr = cable_robot(ctx.robot(robot))
+        cables = list(spec.get("cables", range(cdpr.n)))
+        if len(cables) < 3:
+            return {}
+        stream = ctx.stream(spec["stream"])
+        rows = ctx.associate(stream, robot, spec).row
+        columns = length_columns(spec, cdpr.n)
+        pulleys = np.array([values.atPoint3(ctx.parameter(robot, "pulley", i)) for i in cables])
+        offsets = np.array([values.atDouble(ctx.parameter(robot, "offset", i)) for i in cables])
+        z = np.column_stack([stream.column(columns[i])[rows] for i in cables])
+        positions, _ = forward_kinematics(pulleys, offsets, cdpr.attachments[cables], z)
+        return {"forward_kinematics": Stream("forward_kinematics", stream.t[rows], ("x", "y", "z"), positions,
+                                             f"{spec.label}: forward kinematics")}
 
     def diagnose(self, ctx, spec: Spec) -> None:
         """Observability of each cable's pulley and offset from this trajectory (thesis eqs. 4.6-4.7)."""

@@ -9,7 +9,7 @@ import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
                            FactorType, gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec,
-                           vectorized_factor)
+                           Stream, vectorized_factor)
 
 from .residuals import CO_REGISTRATION, SCALED_BETWEEN
 
@@ -209,6 +209,24 @@ class ScaledRelativePose(FactorType):
         ctx.add_vectorized(SCALED_BETWEEN, np.column_stack([keys, np.full(len(keys), scale)]),
                            {"measured": measured}, pose_sigmas(spec["sigma"], False), spec,
                            ctx.state_set(robot).t[ka + 1])
+
+    def baseline(self, ctx, spec: Spec, values) -> dict:
+        """`visual_odometry`: the odometry alone, its increments at the estimated scale composed from the
+        estimated first pose (dead reckoning; a gap of the stream adds no motion), at the states' times."""
+        robot = spec["robot"]
+        ka, before, after = odometry_pairs(ctx, spec, robot)
+        if not len(ka):
+            return {}
+        scale = values.atDouble(ctx.parameter(robot, spec["scale"]))
+        pose = values.atPose3(ctx.pose_key(robot, int(ka[0])))
+        positions = [pose.translation()]
+        for a, b in zip(before, after):
+            d = a.between(b)
+            pose = pose.compose(gtsam.Pose3(d.rotation(), scale * d.translation()))
+            positions.append(pose.translation())
+        t = ctx.state_set(robot).t[np.concatenate([ka[:1], ka + 1])]
+        return {"visual_odometry": Stream("visual_odometry", t, ("x", "y", "z"), np.array(positions),
+                                          f"{spec.label}: dead reckoning")}
 
     @classmethod
     def example(cls, rng):
