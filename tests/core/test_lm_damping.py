@@ -30,8 +30,8 @@ def test_a_camera_dropout_needs_levenberg_damping():
     runs = {}
     for damping in ("levenberg", "marquardt"):
         with simulated_config("pose.imu_vo", params, seed=0,
-                              edit=lambda c, d=damping: c["solver"].update(damping=d)) as config:
+                              edit=lambda c, d=damping: c["solver"].update(damping=d, max_iterations=20)) as config:
             runs[damping] = estimate(config, keep_rejected=True)
-    assert runs["levenberg"].solution.iterations < 15
-    assert runs["marquardt"].solution.iterations > 3 * runs["levenberg"].solution.iterations
-    assert runs["levenberg"].solution.final_error < runs["marquardt"].solution.final_error
+    assert runs["levenberg"].solution.iterations < 15         # measured 6
+    assert runs["marquardt"].solution.iterations == 20        # measured: still not converged after 100
+    assert runs["levenberg"].solution.final_error < 0.97 * runs["marquardt"].solution.final_error
