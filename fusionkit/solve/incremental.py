@@ -9,7 +9,10 @@ start-up phase in which static parameters are not yet observable (a VO scale aft
 millimetres of motion, pulleys before the calibration motion has covered three axes). Added one
 step at a time, such a phase makes Gauss-Newton jump far from the truth (a negative scale), and
 iSAM2 spends the rest of the run relinearizing, or diverges. Its wall time is reported apart
-from the per-step latency."""
+from the per-step latency.
+
+`new_states: carried` starts each new state from the previous state's estimate moved by the initial values'
+step (carried_forward), instead of its initial value: for initial values from drifting odometry."""
 
 from __future__ import annotations
 
