@@ -28,8 +28,7 @@ import numpy as np
 from fusionkit.errors import SolverError
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-from fusionkit.api import held_intervals
-from fusionkit_plugins.pose.imu import preintegration_params
+from fusionkit_plugins.pose.imu import IMU_COLUMNS, integrate_held, preintegration_params
 from fusionkit_plugins.pose.imu_vo import ImuVoSimulator, body_path
 from _timing import table
 
@@ -49,15 +48,12 @@ def imu_alone(t: np.ndarray, imu, t0: float) -> np.ndarray:
     zero = gtsam.imuBias.ConstantBias()
     pos, _, R = body_path(np.array([t0]))
     nav = gtsam.NavState(gtsam.Pose3(gtsam.Rot3(R[0]), pos[0]), _velocity(np.array([t0]))[0])
-    samples = np.column_stack([imu.column(c) for c in ("ax", "ay", "az", "gx", "gy", "gz")])
+    samples = np.column_stack([imu.column(c) for c in IMU_COLUMNS])
     pim = gtsam.PreintegratedImuMeasurements(preintegration_params(1e-3, 1e-4, 9.81), zero)
     out = np.full((len(t), 3), np.nan)
     last = t0
     for k in np.flatnonzero(t >= t0):
-        rows, dts = held_intervals(imu.t, last, float(t[k]))
-        for j, dt in zip(rows, dts):
-            if dt > 0:
-                pim.integrateMeasurement(samples[j, :3], samples[j, 3:], float(dt))
+        integrate_held(pim, imu.t, samples, last, float(t[k]))
         out[k] = pim.predict(nav, zero).position()
         last = float(t[k])
     return out

@@ -37,15 +37,20 @@ def preintegration_params(accel_density: float, gyro_density: float, gravity: fl
     return p
 
 
-def preintegrate(params, bias: gtsam.imuBias.ConstantBias, t: np.ndarray, samples: np.ndarray, t0: float,
-                 t1: float) -> gtsam.PreintegratedImuMeasurements:
-    """The samples (K, 6) at times t held over [t0, t1), each until the next sample."""
-    pim = gtsam.PreintegratedImuMeasurements(params, bias)
+def integrate_held(pim: gtsam.PreintegratedImuMeasurements, t: np.ndarray, samples: np.ndarray, t0: float,
+                   t1: float) -> gtsam.PreintegratedImuMeasurements:
+    """Adds to `pim` the samples (K, 6) at times t held over [t0, t1), each until the next sample."""
     rows, dts = held_intervals(t, t0, t1)
     for j, dt in zip(rows, dts):
         if dt > 0:
             pim.integrateMeasurement(samples[j, :3], samples[j, 3:], float(dt))
     return pim
+
+
+def preintegrate(params, bias: gtsam.imuBias.ConstantBias, t: np.ndarray, samples: np.ndarray, t0: float,
+                 t1: float) -> gtsam.PreintegratedImuMeasurements:
+    """The samples (K, 6) at times t held over [t0, t1), each until the next sample."""
+    return integrate_held(gtsam.PreintegratedImuMeasurements(params, bias), t, samples, t0, t1)
 
 
 class PreintegratedImu(FactorType):
@@ -289,8 +294,9 @@ class BridgeOdometryGaps(Initializer):
                                 float(states.t[e] - states.t[lo]), spec["gravity"])
             start = gtsam.Pose3(gtsam.Rot3(tilt @ poses[e].rotation().matrix()), poses[e].translation())
             nav = gtsam.NavState(start, v_last)
-            for k in range(e + 1, end + 1):
-                pim = preintegrate(params, zero, t_imu, samples, float(states.t[e]), float(states.t[k]))
+            pim = gtsam.PreintegratedImuMeasurements(params, zero)
+            for k in range(e + 1, end + 1):  # one preintegration grown state by state across the gap
+                integrate_held(pim, t_imu, samples, float(states.t[k - 1]), float(states.t[k]))
                 predicted = pim.predict(nav, zero).pose()
                 if k < end:
                     poses[k] = predicted
