@@ -50,7 +50,7 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
         if method == "dogleg":
             values, history = _dogleg(graph, problem.initial, rtol, atol, max_iterations, progress, qr, ordering)
         else:
-            damping = DampingSettings(scaled=settings["damping"] == "marquardt") if method == "lm" else None
+            damping = DampingSettings.of(settings) if method == "lm" else None
             values, history = levenberg_marquardt(problem.evaluator(), problem.initial, rtol, atol, max_iterations, damping,
                                                   progress, qr, ordering, first)
     except RuntimeError as exc:

@@ -84,7 +84,7 @@ def warm_start(problem: Problem, steps: list, settings: dict) -> tuple[list, gts
         else:
             rest.append((t, step_records, new))
     values, _ = levenberg_marquardt(GraphEvaluator(records), value_subset(problem, keys), 1e-6, 1e-9, 100,
-                                    DampingSettings(scaled=settings["damping"] == "marquardt"))
+                                    DampingSettings.of(settings))
     return records, values, last, rest
 
 

@@ -45,6 +45,11 @@ class DampingSettings:
     max_diagonal: float = 1e32
     scaled: bool = True  # Marquardt: lambda * diag(J^T J); False: Levenberg, lambda * I
 
+    @classmethod
+    def of(cls, settings: dict) -> "DampingSettings":
+        """The damping a `solver:` section asks for (`damping: marquardt | levenberg`)."""
+        return cls(scaled=settings["damping"] == "marquardt")
+
 
 def hessian_diagonal(linear: gtsam.GaussianFactorGraph, total_dim: int) -> np.ndarray:
     """diag(A^T A) over all variables, ordered by sorted key (the sparse Jacobian's column order)."""
