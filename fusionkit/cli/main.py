@@ -289,10 +289,6 @@ def cmd_view(args) -> int:
     try:
         if args.png:
             file = Path(args.png)
-            if file.exists():
-                raise ConfigError(f"--png {file}: exists; fusionkit writes only new files (choose another name)")
-            if not file.parent.is_dir():
-                raise ConfigError(f"--png {file}: folder {file.parent} does not exist")
             note = render_png(folder, file, args.time, args.backend)
             print(f"wrote {file}" + (f" ({note})" if note else ""))
         else:

@@ -42,8 +42,13 @@ def drawable_scene(folder: Path) -> dict:
 
 
 def render_png(folder: Path, file: Path, time: float | None = None, backend: str = "auto") -> str:
-    """Renders the scene of output folder `folder` into the new file `file` (written whole or not at all);
-    returns a one-line note when matplotlib drew it instead of open3d, else ''."""
+    """Renders the scene of output folder `folder` into the new file `file`, written whole or not at all and
+    never over an existing file (ValueError); returns a one-line note when matplotlib drew it instead of
+    open3d, else ''."""
+    if file.exists():
+        raise ValueError(f"{file}: exists; fusionkit writes only new files (choose another name)")
+    if not file.parent.is_dir():
+        raise ValueError(f"{file}: folder {file.parent} does not exist")
     scene = drawable_scene(folder)
     with tempfile.TemporaryDirectory(dir=file.parent) as tmp:
         part = Path(tmp) / file.name
@@ -54,7 +59,10 @@ def render_png(folder: Path, file: Path, time: float | None = None, backend: str
             note = f"{why}: drawn with matplotlib" if not done else ""
         if not done:
             matplotlib_png(scene, part, time)
-        os.replace(part, file)
+        try:
+            os.link(part, file)  # the finished image appears at once, and only where no file is
+        except FileExistsError:
+            raise ValueError(f"{file}: exists; fusionkit writes only new files (choose another name)") from None
     return note
 
 

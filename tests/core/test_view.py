@@ -113,6 +113,19 @@ def test_view_refuses_to_overwrite_a_file_and_a_folder_without_a_scene(run_folde
     assert not (tmp_path / "new.png").exists()
 
 
+def test_render_png_never_replaces_a_file_and_leaves_nothing_behind(run_folder, tmp_path):
+    mine = tmp_path / "mine.png"
+    mine.write_bytes(b"user data")
+    with pytest.raises(ValueError, match="exists; fusionkit writes only new files"):
+        view.render_png(run_folder, mine, backend="matplotlib")
+    assert mine.read_bytes() == b"user data"
+    with pytest.raises(ValueError, match="does not exist"):
+        view.render_png(run_folder, tmp_path / "no_such_folder" / "new.png", backend="matplotlib")
+    new = tmp_path / "new.png"
+    assert view.render_png(run_folder, new, backend="matplotlib") == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.png", "new.png"]  # no temporary file left
+
+
 @pytest.mark.skipif(importlib.util.find_spec("open3d") is None,
                     reason="open3d is not installed (pip install 'fusionkit[view]'); the matplotlib path is tested")
 def test_open3d_renders_the_scene_offscreen(run_folder, tmp_path):
