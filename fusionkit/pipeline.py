@@ -178,12 +178,19 @@ def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndar
             rows = _pose3_rows(values, keys)
             arr = pose_array_of(rows[:, :9].reshape(-1, 3, 3), rows[:, 9:])
         trajs[robot] = pose_stream(robot, states.t[ks], arr, f"estimate:{robot}")
-        if all(k in cov for k in keys):  # position covariance (tangent space, body axes) -> world axes
+        if all(k in cov for k in keys):
             rot = [gtsam.Rot2(p.theta()).matrix() for p in read] if planar else rows[:, :9].reshape(-1, 3, 3)
-            idx = [0, 1] if planar else [3, 4, 5]
-            sigmas[robot] = np.asarray([np.sqrt(np.diag(r @ cov[k][np.ix_(idx, idx)] @ r.T))
+            sigmas[robot] = np.asarray([np.sqrt(np.diag(world_position_covariance(r, cov[k], planar)))
                                         for r, k in zip(rot, keys)])
     return trajs, sigmas
+
+
+def world_position_covariance(rotation: np.ndarray, tangent: np.ndarray, planar: bool) -> np.ndarray:
+    """A pose's position covariance in world axes (m^2; 2x2 planar, else 3x3) from its tangent-space covariance
+    (translation in body axes: Pose2 [x, y, theta], Pose3 [rotation, translation]) and its rotation matrix."""
+    idx = [0, 1] if planar else [3, 4, 5]
+    r = np.asarray(rotation)[:2, :2] if planar else rotation
+    return r @ tangent[np.ix_(idx, idx)] @ r.T
 
 
 def _pose3_rows(values: gtsam.Values, keys: list[int]) -> np.ndarray:
@@ -330,23 +337,21 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:
     """robot -> baseline name -> position RMSE (m) against the truth at the baseline's times (nearest true
     pose within 0.01 s, no alignment), beside the fused estimate's at the same times."""
+    def rms(error: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(np.sum(error ** 2, axis=1))))
+
     out: dict[str, dict] = {}
     for robot, named in baselines.items():
-        ref = truth.trajectories[robot]
         fused = trajectories.get(robot)
         for name, stream in named.items():
-            m = nearest(ref.t, stream.t, MATCH_TOLERANCE)
-            if not len(m.row):
+            m = matched_positions(stream, truth.trajectories[robot])
+            if not len(m.t):
                 continue
-            xyz = np.column_stack([stream.column(c) for c in "xyz"])[m.row]
-            true = ref.pose_array()[m.state, :3]
-            entry = {"position_rmse_m": float(np.sqrt(np.mean(np.sum((xyz - true) ** 2, axis=1)))),
-                     "matched": int(len(m.row))}
-            if fused is not None:
-                f = nearest(fused.t, stream.t[m.row], MATCH_TOLERANCE)
-                if len(f.row) == len(m.row):
-                    entry["fused_position_rmse_m"] = float(np.sqrt(np.mean(np.sum(
-                        (fused.pose_array()[f.state, :3] - true[f.row]) ** 2, axis=1))))
+            entry = {"position_rmse_m": rms(m.error), "matched": int(len(m.t))}
+            if fused is not None:  # the fused states at the baseline's matched times
+                f = nearest(fused.t, m.t, MATCH_TOLERANCE)
+                if len(f.row) == len(m.t):
+                    entry["fused_position_rmse_m"] = rms(fused.pose_array()[f.state, :3] - m.truth[f.row])
             out.setdefault(robot, {})[name] = entry
     return out
 

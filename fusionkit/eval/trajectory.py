@@ -29,10 +29,12 @@ class MatchedPositions:
 
 def matched_positions(estimate: Stream, truth: Stream, sigma: np.ndarray | None = None) -> MatchedPositions:
     """Pair each truth pose with the nearest state within MATCH_TOLERANCE; `sigma` (one row per state
-    of `estimate`) sets the axes compared: its columns (x, y for planar robots), else x, y, z."""
+    of `estimate`) sets the axes compared: its columns (x, y for planar robots), else x, y, z. `estimate`:
+    poses, or positions (columns x, y, z)."""
     a = nearest(truth.t, estimate.t, MATCH_TOLERANCE)
     d = 3 if sigma is None else sigma.shape[1]
-    return MatchedPositions(estimate.t[a.row], estimate.pose_array()[a.row, :d], truth.pose_array()[a.state, :d],
+    position = np.column_stack([estimate.column(c) for c in "xyz"[:d]])
+    return MatchedPositions(estimate.t[a.row], position[a.row], truth.pose_array()[a.state, :d],
                             None if sigma is None else sigma[a.row])
 
 

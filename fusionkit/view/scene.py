@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..pipeline import RunResult
+from ..pipeline import RunResult, world_position_covariance
 from ..plugins import registry
 from .shapes import Lines, Points, polyline
 
@@ -95,38 +95,34 @@ def _state_at(result: RunResult, robot: str, t: float) -> tuple[dict[str, Any], 
     return state, index
 
 
-def _frame(result: RunResult, models: dict, calibrated: dict, t: float) -> list[dict]:
+def _frame(result: RunResult, models: dict, calibrated: dict, covariance_keys: dict, axis_length: float,
+           t: float) -> list[dict]:
     shapes = []
     for robot, model in models.items():
         state, index = _state_at(result, robot, t)
         if not state:
             continue
         shapes += [s.to_json() for s in model.geometry(robot, calibrated[robot], state)]
-        cov = _position_covariance(result, robot, state.get("pose"), index)
-        if cov is not None:
-            shapes.append(ellipsoid(f"{robot} position 3-sigma", state["pose"].translation(), cov))
-        if index is not None:
-            shapes.append(Points(f"{robot} now", state["pose"].translation()[None], _color(result, robot), 8.0).to_json())
-            shapes += body_axes(robot, state["pose"].matrix(), AXIS_LENGTH * _extent(result))
+        if index is None:
+            continue
+        pose = state["pose"]
+        keys = covariance_keys.get(robot)
+        if keys is not None:
+            planar = result.problem.states[robot].family.vartype.name == "pose2"
+            cov = world_position_covariance(pose.rotation().matrix(), result.solution.covariances[keys[index]], planar)
+            shapes.append(ellipsoid(f"{robot} position 3-sigma", pose.translation(), cov))
+        shapes.append(Points(f"{robot} now", pose.translation()[None], _color(result, robot), 8.0).to_json())
+        shapes += body_axes(robot, pose.matrix(), axis_length)
     return shapes
 
 
-def _position_covariance(result: RunResult, robot: str, pose, index: int | None) -> np.ndarray | None:
-    """World-frame position covariance (3x3, m^2) of the trajectory's sample `index`: the pose's tangent
-    covariance (translation in body axes) rotated into the world; None without one."""
-    if index is None:
+def _covariance_keys(result: RunResult, robot: str) -> list[int] | None:
+    """The state keys of the robot's trajectory samples, when each has a marginal covariance."""
+    states = result.problem.states.get(robot)
+    if states is None or robot not in result.trajectories:
         return None
-    family = result.problem.states[robot].family
-    present = [k for k in family.keys(range(len(result.problem.states[robot]))) if k in result.solution.covariances]
-    if len(present) != len(result.trajectories[robot].t):
-        return None
-    cov = result.solution.covariances[present[index]]
-    R = pose.rotation().matrix()
-    if family.vartype.name == "pose2":  # [x, y, theta]: x, y in body axes
-        c = np.zeros((3, 3))
-        c[:2, :2] = cov[:2, :2]
-        return R @ c @ R.T
-    return R @ cov[3:, 3:] @ R.T
+    keys = [k for k in states.family.keys(range(len(states))) if k in result.solution.covariances]
+    return keys if len(keys) == len(result.trajectories[robot].t) else None
 
 
 def body_axes(robot: str, T: np.ndarray, length: float) -> list[dict]:
@@ -154,8 +150,11 @@ def build_scene(result: RunResult) -> dict:
     for robot, model in models.items():  # geometry that does not move (a robot without states)
         if not _state_at(result, robot, 0.0)[0]:
             static += [s.to_json() for s in model.geometry(robot, calibrated[robot], {})]
+    covariance_keys = {robot: _covariance_keys(result, robot) for robot in models}
+    axis_length = AXIS_LENGTH * _extent(result)
     return {"fusionkit_scene": SCENE_VERSION, "name": result.config.name, "trajectories": _trajectories(result),
-            "static": static, "times": times, "frames": [_frame(result, models, calibrated, t) for t in times]}
+            "static": static, "times": times,
+            "frames": [_frame(result, models, calibrated, covariance_keys, axis_length, t) for t in times]}
 
 
 def is_empty(scene: dict) -> bool:
