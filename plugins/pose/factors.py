@@ -52,6 +52,17 @@ def poses_at(stream, t: np.ndarray, max_gap: float | None = None) -> tuple[np.nd
     return inside, poses_from_array(arr)
 
 
+def dead_reckoned(start: gtsam.Pose3, before: list[gtsam.Pose3], after: list[gtsam.Pose3],
+                  scale: float = 1.0) -> list[gtsam.Pose3]:
+    """`start` followed by each increment before[i]^-1 after[i] composed onto the last pose, its translation
+    times `scale` (an odometry in its own units)."""
+    poses = [start]
+    for a, b in zip(before, after):
+        d = a.between(b)
+        poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
+    return poses
+
+
 def odometry_pairs(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.Pose3], list[gtsam.Pose3]]:
     """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times:
     (every ka, the body poses at those ka, the body poses at their kb).
@@ -218,15 +229,10 @@ class ScaledRelativePose(FactorType):
         if not len(ka):
             return {}
         scale = values.atDouble(ctx.parameter(robot, spec["scale"]))
-        pose = values.atPose3(ctx.pose_key(robot, int(ka[0])))
-        positions = [pose.translation()]
-        for a, b in zip(before, after):
-            d = a.between(b)
-            pose = pose.compose(gtsam.Pose3(d.rotation(), scale * d.translation()))
-            positions.append(pose.translation())
+        poses = dead_reckoned(values.atPose3(ctx.pose_key(robot, int(ka[0]))), before, after, scale)
         t = ctx.state_set(robot).t[np.concatenate([ka[:1], ka + 1])]
-        return {"visual_odometry": Stream("visual_odometry", t, ("x", "y", "z"), np.array(positions),
-                                          f"{spec.label}: dead reckoning")}
+        return {"visual_odometry": Stream("visual_odometry", t, ("x", "y", "z"),
+                                          np.array([p.translation() for p in poses]), f"{spec.label}: dead reckoning")}
 
     @classmethod
     def example(cls, rng):

@@ -7,7 +7,7 @@ import numpy as np
 
 from fusionkit.api import POSE_COLUMNS, Initializer, nearest, poses_from_array, Spec
 
-from .factors import BASE_TRANSFORM, poses_at, to_pose2
+from .factors import BASE_TRANSFORM, dead_reckoned, poses_at, to_pose2
 
 
 def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
@@ -61,16 +61,8 @@ class DeadReckoning(Initializer):
             start = poses_from_array(anchor.pose_array()[first.state])[0]
         else:
             start = _first_state_pose(ctx, robot)
-        poses = [start]
-        if "scale" in spec.data:
-            scale = float(ctx.initial_value(ctx.parameter(robot, spec["scale"])))
-            for a, b in zip(odo[:-1], odo[1:]):
-                d = a.between(b)
-                poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
-        else:
-            for a, b in zip(odo[:-1], odo[1:]):
-                poses.append(poses[-1].compose(a.between(b)))
-        _set_poses(ctx, robot, poses)
+        scale = float(ctx.initial_value(ctx.parameter(robot, spec["scale"]))) if "scale" in spec.data else 1.0
+        _set_poses(ctx, robot, dead_reckoned(start, odo[:-1], odo[1:], scale))
 
 
 class ScaleFromAbsolute(Initializer):
