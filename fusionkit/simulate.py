@@ -16,7 +16,7 @@ from .config.loader import RunConfig, load_config
 from .config.overrides import apply_override
 from .config.yamlio import Document
 from .data.files import write_csv_stream, write_tum
-from .data.rosbag_writer import message_type, write_bag
+from .data.rosbag_writer import write_bag
 from .errors import ConfigError
 from .plugins import registry
 from .report.writer import atomic_directory
@@ -40,9 +40,6 @@ def write_dataset(scenario: str, out: Path, overrides: list[str], seed: int = 0,
     params = cls.resolve(params, Document(params, Path(f"<simulate {scenario}>")))
     sim = cls()
     data = sim.simulate(params, np.random.default_rng(seed))
-    if bag:
-        for stream in data.streams.values():
-            message_type(stream)  # every stream has a message, before anything is written
     written: list[Path] = []
     with atomic_directory(out, "simulate") as tmp:
         for sub in ("data", "truth", "robots"):
