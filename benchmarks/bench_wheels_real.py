@@ -3,15 +3,17 @@
 ground truth; no gyro, no passive wheel), 6 circular runs (December 2020) and 6 UMBmark squares
 (June 2020).
 
-Each parameter set (nominal; UMBmark on the squares; two-stage least squares on either session; the
+Each parameter set (nominal; UMBmark on the squares; two-stage least squares on either session; OptiOdom's
+objective reimplemented on either session; the
 fusionkit graph calibration on either session -- wheels.preintegrated between states 1 s apart and the
 motion-capture poses as pose.absolute; OptiOdom's published parameters) is evaluated on both
 sessions with the reference implementation's measures: max e_d, the largest position error along any
 run's path, and the largest final position error and heading error, dead reckoning from each run's true
 start pose. A set calibrated on one session and evaluated on the other is held out. The published
 figures (reference_results.csv) are in-sample. Then each session leave-one-run-out: every run
-evaluated with the parameters calibrated on the session's other five (graph, least squares; UMBmark
-needs both directions of a square and is left out), against the in-sample figures. Then the sensitivity
+evaluated with the parameters calibrated on the session's other five (graph, least squares, OptiOdom's
+objective reimplemented -- squared position errors at checkpoints every 0.5 m of travel -- and, on the
+squares, UMBmark), against the in-sample figures. Then the sensitivity
 of the least-squares fit to its segment length and of the graph calibration to its noise settings and
 state spacing.
 
@@ -23,8 +25,9 @@ from __future__ import annotations
 from dataclasses import replace
 
 from research.external_data import external_data
-from research.wheels_optiodom import (CIRCULAR, GRAPH, NAME, SQUARE, WheelParameters, evaluate, graph_calibration,
-                                      least_squares, load_session, nominal, published, umbmark_parameters)
+from research.wheels_optiodom import (CIRCULAR, GRAPH, NAME, SQUARE, WheelParameters, checkpoint_fit, evaluate,
+                                      graph_calibration, least_squares, load_session, nominal, published,
+                                      umbmark_parameters)
 from _timing import run_parts, table, timed
 
 DATA = external_data(NAME)
@@ -51,7 +54,9 @@ def calibrations(sessions) -> tuple[str, dict]:
     sets = {"nominal": (nominal(sessions[CIRCULAR]), None),
             "UMBmark, squares": (umbmark_parameters(sessions[SQUARE]), SQUARE),
             "least squares, circular": (least_squares(sessions[CIRCULAR]), CIRCULAR),
-            "least squares, squares": (least_squares(sessions[SQUARE]), SQUARE)}
+            "least squares, squares": (least_squares(sessions[SQUARE]), SQUARE),
+            "OptiOdom objective (ours), circular": (checkpoint_fit(sessions[CIRCULAR]), CIRCULAR),
+            "OptiOdom objective (ours), squares": (checkpoint_fit(sessions[SQUARE]), SQUARE)}
     graph = {}
     for on in (CIRCULAR, SQUARE):
         (params, sigma, result), seconds = timed(lambda: graph_calibration(sessions[on]))
@@ -80,13 +85,19 @@ def calibrations(sessions) -> tuple[str, dict]:
     return text, raw
 
 
+LOO_METHODS = {"fusionkit graph": lambda s: graph_calibration(s)[0], "least squares": least_squares,
+               "OptiOdom objective (ours)": checkpoint_fit, "UMBmark": umbmark_parameters}
+
+
 def leave_one_run_out(sessions) -> tuple[str, dict]:
     """Per session: each run dead-reckoned with the parameters calibrated on the other runs; the measures
-    over those held-out runs (max e_d along any path, largest final error) beside the in-sample ones."""
+    over those held-out runs (max e_d along any path, largest final error) beside the in-sample ones. UMBmark
+    needs squares driven both ways: squares only."""
     rows, raw = [], {}
-    methods = {"fusionkit graph": lambda s: graph_calibration(s)[0], "least squares": least_squares}
     for name, session in sessions.items():
-        for label, fit in methods.items():
+        for label, fit in LOO_METHODS.items():
+            if label == "UMBmark" and name != SQUARE:
+                continue
             along, final = [], []
             for i, run in enumerate(session.runs):
                 others = replace(session, runs=[r for j, r in enumerate(session.runs) if j != i])
@@ -95,7 +106,8 @@ def leave_one_run_out(sessions) -> tuple[str, dict]:
                 final.append(e.max_final)
             inside = evaluate(session, fit(session))
             raw[f"{label}, {SHORT[name]}"] = {"held_out_max_e_d": max(along), "held_out_max_final": max(final),
-                                               "in_sample_max_e_d": inside.max_along}
+                                               "in_sample_max_e_d": inside.max_along,
+                                               "in_sample_max_final": inside.max_final}
             rows.append([f"{label}, {SHORT[name]}", f"{max(along):.4f}", f"{max(final):.4f}",
                          f"{inside.max_along:.4f}", f"{inside.max_final:.4f}"])
     for r in published():

@@ -12,9 +12,17 @@ and every method estimates its end pose from the same wheel stream:
   - its ablations: without the passive wheel (its encoder factor dropped, dead reckoning from the driven
     wheels) and without the gyro (wheels.gyro dropped).
 
-`--gyro calibrated` gives every method the gyro's true scale and bias, held fixed (as after a turntable
-calibration; the wheels' intrinsics stay nominal): a cheap gyro's scale cannot be told from a slip in
-turns that all slide (the square's), whatever the method, unless it was calibrated beforehand.
+What every method knows of the robot (`--intrinsics`):
+  - `nominal`: the description's values (wheel radii, axle, passive radius; gyro scale 1, bias 0); the
+    graph estimates all of them from the run itself;
+  - `true_gyro`: the gyro's true scale and bias, held fixed (as after a turntable calibration; the wheels'
+    intrinsics stay nominal);
+  - `calibration_run`: what a user does first: a separate clean 60 s figure eight of the same robot
+    (`robot_seed`: the same true intrinsics, its own noise) with the overhead camera, every intrinsic
+    estimated by the graph (wheels.encoder, wheels.gyro, wheels.nonholonomic, pose.absolute); the rules
+    use the estimates, the graph takes them with their sigmas as its priors (calibration.yaml as overrides).
+A cheap gyro's scale cannot be told from a slip in turns that all slide (the square's), whatever the
+method, unless it was calibrated beforehand.
 
 Measures: the final position error (m) and the final heading error (deg) against the simulator's truth;
 per class the median and 90th percentile of each method, how often the graph beats every rule, and
@@ -24,7 +32,8 @@ The fault settings were fixed before any run; the simulator's noise levels are t
 config assumes (a self-consistency setting); the faults themselves are outside its model. A graph
 solve that fails counts as a loss and is reported.
 
-    python benchmarks/bench_wheels_sim.py [--quick] [--runs N] [--workers W] [--gyro nominal|calibrated]
+    python benchmarks/bench_wheels_sim.py [--quick] [--runs N] [--workers W]
+                                          [--intrinsics nominal|true_gyro|calibration_run]
 """
 
 from __future__ import annotations
@@ -65,23 +74,47 @@ def _end_errors(end: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
     return float(np.hypot(*(end[:2] - truth[:2]))), float(np.degrees(abs(heading)))
 
 
-def _gyro_calibration(folder: str) -> str:
-    """A calibration file (robot overrides) holding the simulator's true gyro scale and bias, fixed."""
+def _write_overrides(folder: str, entries: dict) -> str:
+    """A calibration file (robot overrides) of `entries` ({name: (value, 1-sigma prior or None: fixed)})."""
     from pathlib import Path
 
     import yaml
-    from fusionkit_plugins.wheels.simulator import WheelsSimulator
-    gyro = WheelsSimulator.defaults["gyro"]
-    path = Path(folder) / "gyro.yaml"
+    path = Path(folder) / "intrinsics.yaml"
     path.write_text(yaml.safe_dump({"fusionkit_calibration": 1, "robots": {"robot": {
-        "gyro_scale": {"type": "scalar", "value": gyro["scale"], "fixed": True},
-        "gyro_bias": {"type": "scalar", "value": gyro["bias"], "fixed": True}}}}))
+        name: {"type": "scalar", "value": float(value), **({"fixed": True} if sigma is None else {"sigma": float(sigma)})}
+        for name, (value, sigma) in entries.items()}}}))
     return str(path)
 
 
-def one_run(job: tuple[str, int, float, str]) -> dict:
+def _true_gyro() -> dict:
+    from fusionkit_plugins.wheels.simulator import WheelsSimulator
+    gyro = WheelsSimulator.defaults["gyro"]
+    return {"gyro_scale": (gyro["scale"], None), "gyro_bias": (gyro["bias"], None)}
+
+
+CALIBRATION = {"duration": 60.0, "path": "figure_eight"}  # the clean calibration run, with the camera
+CALIBRATION_SEED = 100_000                                 # + the run's seed: its own noise
+
+
+def calibration_run(seed: int) -> dict:
+    """{intrinsic: (value, 1-sigma)} the graph estimates from a clean run of robot `seed` (the same true
+    intrinsics as evaluation run `seed`, other noise) with the overhead camera."""
+    from fusionkit.pipeline import estimate
+    from fusionkit.simulate import simulated_config
+    from fusionkit_plugins.wheels.simulator import WheelsSimulator
+
+    def with_camera(config):
+        config["factors"].append({"type": "pose.absolute", "robot": "robot", "stream": "camera",
+                                  "sigma": WheelsSimulator.defaults["camera"]["sigma"]})
+    with simulated_config("wheels.sim", {**CALIBRATION, "robot_seed": seed}, seed=CALIBRATION_SEED + seed,
+                          edit=with_camera) as config:
+        result = estimate(config)
+    return {name: (float(est.values[0]), float(est.sigma[0, 0])) for name, est in result.parameters["robot"].items()}
+
+
+def one_run(job: tuple[str, int, float, str, dict | None]) -> dict:
     """Every method's end-pose errors on run `seed` of fault class `fault`; the graph's end-pose z-scores;
-    with `gyro` "calibrated" every method knows the gyro's true scale and bias."""
+    `intrinsics` says what every method knows of the robot (module docstring)."""
     import tempfile
 
     from fusionkit.api import SolverError
@@ -91,12 +124,13 @@ def one_run(job: tuple[str, int, float, str]) -> dict:
     from fusionkit_plugins.wheels.baseline import THRESHOLDS
     from fusionkit_plugins.wheels.model import drive_of
 
-    fault, seed, duration, gyro = job
+    fault, seed, duration, intrinsics, calibrated = job
     params = {"duration": duration, "path": PATHS[seed % len(PATHS)], "faults": FAULTS[fault]}
     thresholds = {k: s["default"] for k, (s, _) in THRESHOLDS.items()}
     out: dict = {"fault": fault, "seed": seed, "path": params["path"], "errors": {}, "failed": []}
     folder = tempfile.TemporaryDirectory()
-    overrides = _gyro_calibration(folder.name) if gyro == "calibrated" else None
+    known = {"nominal": dict, "true_gyro": _true_gyro, "calibration_run": lambda: calibrated}[intrinsics]()
+    overrides = _write_overrides(folder.name, known) if known else None
     for name, variant in EDITS.items():
         def edit(config, variant=variant):
             if variant:
@@ -173,18 +207,23 @@ def report(runs: list[dict]) -> tuple[str, dict]:
     return "\n\n".join(parts), raw
 
 
-def run(quick: bool, runs: int | None = None, workers: int = 1, gyro: str = "nominal") -> dict:
+INTRINSICS = {"nominal": "nominal intrinsics",
+              "true_gyro": "gyro calibrated (true scale and bias given to every method)",
+              "calibration_run": "intrinsics from a calibration run (the graph's estimates from a clean 60 s run of "
+                                 "the same robot with the camera, given to every method)"}
+
+
+def run(quick: bool, runs: int | None = None, workers: int = 1, intrinsics: str = "nominal") -> dict:
     runs = runs or (2 if quick else 50)
     duration = 15.0 if quick else DURATION
-    jobs = [(fault, seed, duration, gyro) for fault in FAULTS for seed in range(runs)]
-    if workers > 1:
-        with ProcessPoolExecutor(workers) as pool:
-            results = list(pool.map(one_run, jobs))
-    else:
-        results = [one_run(job) for job in jobs]
+    with ProcessPoolExecutor(workers) as pool:
+        calibrated = (list(pool.map(calibration_run, range(runs))) if intrinsics == "calibration_run"
+                      else [None] * runs)  # one calibration run per robot, shared by the fault classes
+        jobs = [(fault, seed, duration, intrinsics, calibrated[seed]) for fault in FAULTS for seed in range(runs)]
+        results = list(pool.map(one_run, jobs))
     text, raw = report(results)
     head = (f"wheels on simulation: {runs} runs per class, {duration:.0f} s each (paths {', '.join(PATHS)} in turn), "
-            f"gyro {'calibrated (true scale and bias given to every method)' if gyro == 'calibrated' else 'nominal'}")
+            f"{INTRINSICS[intrinsics]}")
     return {"text": f"{head}\n\n{text}", "raw": raw, "runs": results}
 
 
@@ -202,7 +241,7 @@ if __name__ == "__main__":
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--runs", type=int, help="runs per fault class (default 50; --quick 2)")
     ap.add_argument("--workers", type=int, default=1, help="processes")
-    ap.add_argument("--gyro", choices=["nominal", "calibrated"], default="nominal",
-                    help="what every method knows of the gyro's scale and bias")
+    ap.add_argument("--intrinsics", choices=list(INTRINSICS), default="nominal",
+                    help="what every method knows of the robot's intrinsics")
     args = ap.parse_args()
-    print(run(args.quick, args.runs, args.workers, args.gyro)["text"])
+    print(run(args.quick, args.runs, args.workers, args.intrinsics)["text"])

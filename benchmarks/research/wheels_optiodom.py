@@ -163,15 +163,41 @@ def least_squares(session: Session, length: int | None = None) -> WheelParameter
 
 
 def umbmark_parameters(session: Session) -> WheelParameters:
-    """UMBmark on a square session (runs: first half clockwise, then counter-clockwise), from the
-    return errors of dead reckoning with the nominal parameters."""
+    """UMBmark on a square session, from the return errors of dead reckoning with the nominal parameters;
+    a run is clockwise when its true heading decreases over the run."""
     base = nominal(session)
     ends = final_errors(session.runs, [dead_reckoning(r, base.axle_length, base.radius_right, base.radius_left)
                                        for r in session.runs])
-    half = len(session.runs) // 2
-    u = umbmark(ends[:half], ends[half:], session.side, session.axle_length, session.diameter_right,
+    cw = np.array([r.truth[-1, 2] < r.truth[0, 2] for r in session.runs])
+    u = umbmark(ends[cw], ends[~cw], session.side, session.axle_length, session.diameter_right,
                 session.diameter_left)
     return WheelParameters(u.diameter_right / 2, u.diameter_left / 2, u.axle_length)
+
+
+CHECKPOINT_SPACING = 0.5  # m of travel between checkpoints (the reference implementation's `sampleDist`)
+
+
+def checkpoint_fit(session: Session, spacing: float = CHECKPOINT_SPACING) -> WheelParameters:
+    """OptiOdom's objective (Sousa et al. 2022), reimplemented: the radii and axle length minimizing the sum
+    of squared position errors of dead reckoning from each run's true start, at checkpoints every `spacing`
+    m of travel (placed once with the nominal parameters). The reference minimizes it by resilient
+    backpropagation; here scipy's least_squares (trust region) finds the same minimum."""
+    from scipy.optimize import least_squares as solve
+
+    base = nominal(session)
+    checks = []
+    for r in session.runs:
+        travel = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (base.radius_right * np.diff(r.right) +
+                                                                 base.radius_left * np.diff(r.left))))])
+        marks = np.searchsorted(travel, np.arange(spacing, travel[-1], spacing))
+        checks.append(np.unique(np.append(marks[marks < len(travel)], len(travel) - 1)))
+
+    def residuals(x):
+        out = [(r.truth[c, :2] - dead_reckoning(r, x[2], x[0], x[1])[c, :2]).ravel()
+               for r, c in zip(session.runs, checks)]
+        return np.concatenate(out)
+    fit = solve(residuals, [base.radius_right, base.radius_left, base.axle_length], x_scale=[1e-4, 1e-4, 1e-3])
+    return WheelParameters(*map(float, fit.x))
 
 
 def published(folder: Path | None = None) -> list[dict]:

@@ -21,7 +21,9 @@ gives the true pose with the noise of an overhead camera (2.8 mm). Optionally on
 linearly during the run (`drift`). Streams: `wheels` (t, left, right[, passive][, gyro]: cumulative
 ticks or rad as the description says; gyro row i = mean rate over the interval ending at t_i),
 `camera` (poses), `radius_truth` (t, left, right: the true radii, m) with a drift; truth: the path and
-the intrinsics (time-varying ones at the first sample).
+the intrinsics (time-varying ones at the first sample). The true intrinsics (nominal plus `errors`) are drawn
+from the run's seed, or from `robot_seed` when given: the same robot in several runs (a calibration run and
+a mission).
 """
 
 from __future__ import annotations
@@ -66,7 +68,8 @@ class WheelsSimulator(Simulator):
                    "gyro": _obj({"scale": POSITIVE, "bias": {"type": "number"}, "noise": NONNEG,
                                  "bias_drift": NONNEG}),
                    "camera": _obj({"rate": POSITIVE, "sigma": POSE_NOISE_SCHEMA}),
-                   "drift": _obj({"wheel": {"enum": ["left", "right"]}, "change": {"type": "number"}})})
+                   "drift": _obj({"wheel": {"enum": ["left", "right"]}, "change": {"type": "number"}}),
+                   "robot_seed": {"type": ["integer", "null"], "minimum": 0}})
     defaults = {"description": "passive_wheel_robot", "path": "figure_eight", "duration": 60.0, "rate": 20.0,
                 "speed": 0.15, "errors": {"radius": 0.0003, "axle": 0.002}, "wheel_noise": 2e-4,
                 "faults": {"roughness": {"height": 0.0, "spacing": 0.1},
@@ -75,7 +78,7 @@ class WheelsSimulator(Simulator):
                            "slide": {"turn_rate": 1.0, "slip": 0.0}},
                 "gyro": {"scale": 1.25, "bias": 0.03, "noise": 0.002, "bias_drift": 0.0},
                 "camera": {"rate": 10.0, "sigma": {"rotation": 0.02, "translation": 0.0028}},
-                "drift": {"wheel": "left", "change": 0.0}}
+                "drift": {"wheel": "left", "change": 0.0}, "robot_seed": None}
 
     def stream_columns(self, params: dict):
         data = _shipped(params)
@@ -139,7 +142,8 @@ class WheelsSimulator(Simulator):
         pars = data["parameters"]
         t = sample_times(params["duration"], params["rate"])
         dt = np.diff(t)
-        true = _true_intrinsics(pars, params["errors"], rng)
+        robot_rng = rng if params["robot_seed"] is None else np.random.default_rng(params["robot_seed"])
+        true = _true_intrinsics(pars, params["errors"], robot_rng)
         v_cmd, w_cmd = command(params, t[:-1], rng)
         stuck = _episodes(params["faults"]["stuck"], t[:-1], rng)
         slide = params["faults"]["slide"]

@@ -106,3 +106,14 @@ def test_camera_sees_the_truth_with_2_8_mm_noise_and_a_drifting_radius_changes_b
     radii = streams["radius_truth"]
     assert radii.column("right")[-1] - radii.column("right")[0] == pytest.approx(-0.001)
     assert np.ptp(radii.column("left")) == 0.0 and radii.column("right")[0] == cal["wheel_radius_right"]
+
+
+def test_robot_seed_gives_the_intrinsics_of_the_run_with_that_seed_and_its_own_noise():
+    _, _, mission = simulate(seed=4, duration=5.0, path="loop")
+    calibration_streams, _, calibration = simulate(seed=11, duration=5.0, path="square", robot_seed=4)
+    _, _, other = simulate(seed=11, duration=5.0, path="square")
+    same_seed_streams = simulate(seed=4, duration=5.0, path="square")[0]
+    assert calibration == mission                       # the same robot, bit for bit
+    assert calibration["axle_length"] != other["axle_length"]
+    noise = np.diff(calibration_streams["wheels"].values - same_seed_streams["wheels"].values, axis=0)
+    assert np.abs(noise).max() > 0                      # the same robot and path, other noise
