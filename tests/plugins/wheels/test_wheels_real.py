@@ -9,8 +9,8 @@ from __future__ import annotations
 import pytest
 
 from research.external_data import external_data, missing_reason
-from research.wheels_optiodom import (CIRCULAR, NAME, SQUARE, evaluate, graph_calibration, least_squares,
-                                      load_session, nominal, published, umbmark_parameters)
+from research.wheels_optiodom import (CIRCULAR, NAME, SQUARE, checkpoint_fit, evaluate, graph_calibration,
+                                      least_squares, load_session, nominal, published, umbmark_parameters)
 
 pytestmark = pytest.mark.skipif(not external_data(NAME).is_dir(),
                                 reason=missing_reason(NAME, "OptiOdom differential-drive recordings"))
@@ -40,6 +40,26 @@ def test_umbmark_on_the_squares_reproduces_the_published_parameters_and_max_erro
     assert 2 * params.radius_right == pytest.approx(float(ref["Dr_m"]), abs=1e-6)
     assert 2 * params.radius_left == pytest.approx(float(ref["Dl_m"]), abs=1e-6)
     assert evaluate(sessions[SQUARE], params).max_along == pytest.approx(float(ref["max_ed_m"]), abs=1e-6)
+
+
+def test_optiodom_objective_on_the_squares_lands_on_the_published_parameters_and_figure(sessions):
+    """Measured: L 0.200668 (published 0.200628), D_R 0.083736 (0.083714), D_L 0.083791 (0.083780) m; max
+    e_d 0.0185 against the published 0.0190 m."""
+    ref = reference("Sousa", SQUARE)
+    params = checkpoint_fit(sessions[SQUARE])
+    assert params.axle_length == pytest.approx(float(ref["L_m"]), abs=1e-4)
+    assert 2 * params.radius_right == pytest.approx(float(ref["Dr_m"]), abs=5e-5)
+    assert 2 * params.radius_left == pytest.approx(float(ref["Dl_m"]), abs=5e-5)
+    assert evaluate(sessions[SQUARE], params).max_along <= float(ref["max_ed_m"])
+
+
+def test_umbmark_takes_the_turn_direction_from_the_truth_whatever_the_run_order(sessions):
+    from dataclasses import replace
+    square = sessions[SQUARE]
+    shuffled = replace(square, runs=[square.runs[i] for i in (3, 0, 5, 1, 4, 2)])
+    got, expected = umbmark_parameters(shuffled), umbmark_parameters(square)
+    assert (got.radius_right, got.radius_left, got.axle_length) == pytest.approx(
+        (expected.radius_right, expected.radius_left, expected.axle_length), rel=1e-12)
 
 
 def test_least_squares_calibrated_on_one_session_beats_nominal_on_the_held_out_one(sessions):
