@@ -20,7 +20,9 @@ What every method knows of the robot (`--intrinsics`):
   - `calibration_run`: what a user does first: a separate clean 60 s figure eight of the same robot
     (`robot_seed`: the same true intrinsics, its own noise) with the overhead camera, every intrinsic
     estimated by the graph (wheels.encoder, wheels.gyro, wheels.nonholonomic, pose.absolute); the rules
-    use the estimates, the graph takes them with their sigmas as its priors (calibration.yaml as overrides).
+    use the estimates, the graph takes them with their sigmas as its priors (calibration.yaml as overrides)
+    and, its gyro now calibrated, lets the driven wheels' turn slip (`turn_slip`, seeded from the gyro; dead
+    reckoning turns with the gyro).
 A cheap gyro's scale cannot be told from a slip in turns that all slide (the square's), whatever the
 method, unless it was calibrated beforehand.
 
@@ -92,6 +94,20 @@ def _true_gyro() -> dict:
     return {"gyro_scale": (gyro["scale"], None), "gyro_bias": (gyro["bias"], None)}
 
 
+TURN_SLIP = {"sigma": 1e-4, "k": 3.0, "seed_rate": 0.03}  # rad per step; sigmas; rad/s (docs/models/wheels.md)
+
+
+def trust_the_gyro(config: dict) -> None:
+    """With a calibrated gyro: the driven wheels' turn may slip (one turn slip per step, seeded where the wheels
+    and the gyro disagree) and dead reckoning turns with the gyro. Nothing changes without a gyro."""
+    if not any(f["type"] == "wheels.gyro" for f in config["factors"]):
+        return
+    for f in config["factors"]:
+        if f["type"] == "wheels.encoder" and f.get("wheels") == ["left", "right"]:
+            f["turn_slip"] = dict(TURN_SLIP)
+    config["initializers"][0]["turn"] = "gyro"
+
+
 CALIBRATION = {"duration": 60.0, "path": "figure_eight"}  # the clean calibration run, with the camera
 CALIBRATION_SEED = 100_000                                 # + the run's seed: its own noise
 
@@ -137,6 +153,8 @@ def one_run(job: tuple[str, int, float, str, dict | None]) -> dict:
                 variant(config)
             if overrides:
                 config["robots"]["robot"]["overrides"] = overrides
+            if intrinsics == "calibration_run":
+                trust_the_gyro(config)
         with simulated_config("wheels.sim", params, seed=seed, edit=edit) as config:
             try:
                 result = estimate(config, keep_rejected=True)

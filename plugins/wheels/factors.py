@@ -11,7 +11,7 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import DataError, FactorExample, FactorType, Spec, gaussian
+from fusionkit.api import SCALAR, DataError, FactorExample, FactorType, Spec, gaussian
 
 from .kinematics import GYRO, IMU_GYRO, gyro_integrals, increments, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
@@ -102,27 +102,77 @@ class Noises:
 
 # --- wheels.encoder -------------------------------------------------------------------------------
 
-def _encoder_error(side: float, angle: float, sigma: float, k: float | None, direction: int, this, values, H):
-    """Keys: pose a, pose b, the wheel's radius, then (when the wheel's lateral position is a variable)
-    the axle length (side = +-1/2) or the passive offset (side = 1). With `k`, over-runs in `direction`
-    (residuals.over_read) are down-weighted."""
+def _encoder_error(side: float, angle: float, sigma: float, k: float | None, direction: int, has_lateral: bool,
+                   has_slip: bool, this, values, H):
+    """Keys: pose a, pose b, the wheel's radius, then (`has_lateral`) the axle length (side = +-1/2) or the
+    passive offset (side = 1), then (`has_slip`) the interval's turn slip (rad). With `k`, over-runs in
+    `direction` (residuals.over_read) are down-weighted."""
     keys = this.keys()
-    lateral = side * values.atDouble(keys[3]) if len(keys) > 3 else 0.0
+    lateral = side * values.atDouble(keys[3]) if has_lateral else 0.0
+    slip = values.atDouble(keys[-1]) if has_slip else 0.0
     e, J = encoder_residual(_xyt(values, keys[0]), _xyt(values, keys[1]), values.atDouble(keys[2]), lateral, angle,
-                            H is not None)
+                            H is not None, slip)
     weight = 1.0
     if k is not None:
         e, weight = over_read(e, sigma, direction, k)
     if H is not None:
         H[0], H[1], H[2] = weight * J[0], weight * J[1], weight * J[2]
-        if len(keys) > 3:
+        if has_lateral:
             H[3] = (weight * side) * J[3]
+        if has_slip:
+            H[len(keys) - 1] = weight * J[4]
     return np.array([e])
 
 
 def encoder_factor(keys: list[int], side: float, angle: float, noise, sigma: float,
-                   over_read_k: float | None = None, direction: int = 0) -> gtsam.CustomFactor:
-    return gtsam.CustomFactor(noise, keys, partial(_encoder_error, side, float(angle), sigma, over_read_k, direction))
+                   over_read_k: float | None = None, direction: int = 0, has_lateral: bool | None = None,
+                   has_slip: bool = False) -> gtsam.CustomFactor:
+    """keys: pose a, pose b, radius[, lateral parameter][, turn slip]; `has_lateral` defaults to whether a
+    fourth key is there besides a slip."""
+    if has_lateral is None:
+        has_lateral = len(keys) > 3 + has_slip
+    return gtsam.CustomFactor(noise, keys, partial(_encoder_error, side, float(angle), sigma, over_read_k, direction,
+                                                   has_lateral, has_slip))
+
+
+TURN_SLIP = "turn_slip"
+SLIP_FLOOR = 100.0  # a Gaussian prior this many sigmas wide keeps a slip determined where only the wheels see the turn
+
+
+def seeded_slips(ctx, spec: Spec, stream, ks: np.ndarray) -> np.ndarray:
+    """Initial turn slips (rad) of the intervals ending at states ks: the driven wheels' turn minus the gyro's
+    (both at the description's values: a calibrated gyro) where they differ by more than `seed_rate` (rad/s)
+    times the interval, else 0."""
+    robot = spec["robot"]
+    drive = drive_of(ctx.robot(robot))
+    t = ctx.state_set(robot, spec).t
+    travel = {w: drive.nominal[RADIUS[w]] * increments(stream.t, wheel_column(stream, drive, w), t) for w in ("right", "left")}
+    wheels = (travel["right"] - travel["left"]) / drive.nominal[AXLE]
+    dt = np.diff(t)
+    gyro = drive.nominal[GYRO_SCALE] * gyro_integrals(stream, t) + drive.nominal[GYRO_BIAS] * dt
+    slip = wheels - gyro
+    return np.where(np.abs(slip) > spec["turn_slip"]["seed_rate"] * dt, slip, 0.0)[ks - 1]
+
+
+def turn_slips(ctx, spec: Spec, ks: np.ndarray, stream) -> list[int]:
+    """One scalar variable per state interval (k-1, k): how much further (rad) the driven wheels turned the
+    robot than its body turned, with a Geman-McClure prior at 0 (`turn_slip: {sigma, k}`: rad per interval,
+    and the kernel's width in sigmas) and a Gaussian floor SLIP_FLOOR times wider: zero unless another sensor
+    (the gyro) contradicts the wheels' turn, and then a bounded cost whose pull on the poses vanishes. Its
+    initial value is 0, or (`seed_rate`) seeded_slips."""
+    robot, cfg = spec["robot"], spec["turn_slip"]
+    core = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.GemanMcClure.Create(cfg["k"]),
+                                          gtsam.noiseModel.Isotropic.Sigma(1, cfg["sigma"]))
+    floor = gtsam.noiseModel.Isotropic.Sigma(1, SLIP_FLOOR * cfg["sigma"])
+    seeds = seeded_slips(ctx, spec, stream, ks) if "seed_rate" in cfg else np.zeros(len(ks))
+    keys = []
+    for k, seed in zip(ks.tolist(), seeds.tolist()):
+        key = ctx.state_variable(robot, TURN_SLIP, SCALAR, k, float(seed))
+        t = ctx.state_time(robot, k)
+        ctx.add(gtsam.PriorFactorDouble(key, 0.0, core), spec, t)
+        ctx.add(gtsam.PriorFactorDouble(key, 0.0, floor), spec, t)
+        keys.append(key)
+    return keys
 
 
 def turn_direction(angle: float, sigma: float) -> int:
@@ -141,7 +191,10 @@ class Encoder(FactorType):
               "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA,
                              "wheels": {"type": "array", "items": {"enum": ["left", "right", "passive"]},
                                         "minItems": 1, "uniqueItems": True},
-                             "over_read": SIGMA, "parameter_every": EVERY},
+                             "over_read": SIGMA, "parameter_every": EVERY,
+                             "turn_slip": {"type": "object",
+                                           "properties": {"sigma": SIGMA, "k": SIGMA, "seed_rate": SIGMA},
+                                           "required": ["sigma", "k"], "additionalProperties": False}},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -150,6 +203,13 @@ class Encoder(FactorType):
         wheels = spec["wheels"] if "wheels" in spec.data else list(drive.wheels)
         if "passive" in wheels and not drive.has_passive:
             raise spec.error("wheels", f"robot {spec['robot']!r} has no passive wheel (no parameter 'passive_radius')")
+        if "turn_slip" in spec.data and "passive" in wheels:
+            raise spec.error("turn_slip", "the passive wheel is turned by the floor and turns with the body: give "
+                             "`turn_slip` on an entry of the driven wheels only (`wheels: [left, right]`)")
+        if "seed_rate" in spec.data.get("turn_slip", {}):
+            if not drive.has_gyro:
+                raise spec.error(("turn_slip", "seed_rate"), f"robot {spec['robot']!r} has no gyro to seed slips from")
+            require_gyro(spec, scope, "stream")
         require_wheels(spec, scope, drive, wheels)
 
     def build(self, ctx, spec: Spec) -> None:
@@ -162,6 +222,7 @@ class Encoder(FactorType):
         noises = Noises(ctx, spec, spec["sigma"])
         dts = states.t[ks] - states.t[ks - 1]
         pose_keys = ctx.state_keys(robot, np.column_stack([ks - 1, ks]).ravel())
+        slips = turn_slips(ctx, spec, ks, stream) if "turn_slip" in spec.data else None
         for wheel in (spec["wheels"] if "wheels" in spec.data else drive.wheels):
             angles = increments(stream.t, wheel_column(stream, drive, wheel), states.t)[ks - 1]
             lateral = {"left": (AXLE, 0.5), "right": (AXLE, -0.5)}.get(wheel, (PASSIVE_OFFSET, 1.0))
@@ -170,24 +231,29 @@ class Encoder(FactorType):
                 keys = pose_keys[2 * i:2 * i + 2] + [parameter_key(ctx, spec, RADIUS[wheel], k - 1)]
                 if has_lateral:
                     keys.append(parameter_key(ctx, spec, lateral[0], k - 1))
+                if slips is not None:
+                    keys.append(slips[i])
                 noise, sigma = noises(dt)
                 ctx.add(encoder_factor(keys, lateral[1], angle, noise, sigma, spec.get("over_read"),
-                                       turn_direction(angle, sigma)), spec, float(states.t[k]))
+                                       turn_direction(angle, sigma), has_lateral, slips is not None),
+                        spec, float(states.t[k]))
 
     @classmethod
     def example(cls, rng):
         """A random motion, radius, axle (or offset), and the angle that makes the residual zero; half the
-        examples with the over-read loss (perturbed values fall on either of its branches)."""
+        examples with the over-read loss (perturbed values fall on either of its branches), half with a turn
+        slip."""
         a = rng.normal(scale=[1.0, 1.0, 2.0])
         b = a + rng.normal(scale=[0.05, 0.05, 0.3])
         radius, length = rng.uniform(0.05, 0.1), rng.uniform(0.1, 0.6)
         side = rng.choice([0.5, -0.5, 1.0])
-        angle, _ = encoder_residual(a, b, radius, side * length, 0.0)
+        slip = rng.normal(scale=0.05) if rng.uniform() < 0.5 else None
+        angle, _ = encoder_residual(a, b, radius, side * length, 0.0, slip=slip or 0.0)
         values = gtsam.Values()
-        for key, v in enumerate((gtsam.Pose2(*a), gtsam.Pose2(*b), radius, length)):
+        for key, v in enumerate((gtsam.Pose2(*a), gtsam.Pose2(*b), radius, length) + ((slip,) if slip is not None else ())):
             values.insert(key, v)
-        factor = encoder_factor([0, 1, 2, 3], side, angle, gaussian([0.02]), 0.02,
-                                1.0 if rng.uniform() < 0.5 else None, int(np.sign(angle)))
+        factor = encoder_factor(list(range(4 + (slip is not None))), side, angle, gaussian([0.02]), 0.02,
+                                1.0 if rng.uniform() < 0.5 else None, int(np.sign(angle)), True, slip is not None)
         return FactorExample(factor, values, perturbation=0.01)  # the radius stays well above 0
 
 

@@ -7,9 +7,9 @@ import numpy as np
 
 from fusionkit.api import Initializer, Spec, differential_drive_twist
 
-from .factors import require_wheels
-from .kinematics import increments, wheel_column
-from .model import AXLE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
+from .factors import require_gyro, require_wheels
+from .kinematics import gyro_integrals, increments, wheel_column
+from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .rules import integrate
 
 
@@ -21,7 +21,8 @@ class DeadReckoning(Initializer):
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object", "properties": {"robot": {"type": "string"}, "stream": {"type": "string"},
-                                               "forward": {"enum": ["driven", "passive"], "default": "driven"}},
+                                               "forward": {"enum": ["driven", "passive"], "default": "driven"},
+                                               "turn": {"enum": ["driven", "gyro"], "default": "driven"}},
               "required": ["robot", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
@@ -31,6 +32,10 @@ class DeadReckoning(Initializer):
         if spec["forward"] == "passive" and PASSIVE_RADIUS not in desc.parameters:
             raise spec.error("forward", f"robot {spec['robot']!r} has no passive wheel (no parameter 'passive_radius')")
         require_wheels(spec, scope, drive_of(desc), wheels)
+        if spec["turn"] == "gyro":
+            if not drive_of(desc).has_gyro:
+                raise spec.error("turn", f"robot {spec['robot']!r} has no gyro (no parameters 'gyro_scale', 'gyro_bias')")
+            require_gyro(spec, scope, "stream")
 
     def initialize(self, ctx, spec: Spec) -> None:
         """`forward: passive`: the passive wheel's travel carried to the axle midpoint (it hardly slips: a
@@ -44,6 +49,8 @@ class DeadReckoning(Initializer):
         travel = [drive.nominal[r] * increments(stream.t, wheel_column(stream, drive, w), t)
                   for w, r in (("right", RADIUS_RIGHT), ("left", RADIUS_LEFT))]
         forward, turn = differential_drive_twist(*travel, drive.nominal[AXLE])
+        if spec["turn"] == "gyro":  # a calibrated gyro: true rate = scale * reading + bias
+            turn = drive.nominal[GYRO_SCALE] * gyro_integrals(stream, t) + drive.nominal[GYRO_BIAS] * np.diff(t)
         if spec["forward"] == "passive":
             passive = increments(stream.t, wheel_column(stream, drive, "passive"), t)
             forward = drive.nominal[PASSIVE_RADIUS] * passive + drive.passive_offset * turn

@@ -72,18 +72,21 @@ class Arc:
                 np.array([[gx * cw + gy * sw, gy * cw - gx * sw, gw]]))
 
 
-def encoder_residual(a, b, radius: float, lateral: float, angle: float, jacobians: bool = False):
+def encoder_residual(a, b, radius: float, lateral: float, angle: float, jacobians: bool = False, slip: float = 0.0):
     """Wheel of `radius` at lateral position `lateral` (m, towards the left wheel) measured turning by `angle`
-    (rad) between poses a and b: e = (xi_x - lateral * w) / radius - angle, the predicted turn minus the
-    measured one (rad). With `jacobians`: (e, [d/da, d/db, d/dradius, d/dlateral]) as (1, n) arrays."""
+    (rad) between poses a and b, the wheels turning by `slip` (rad) more than the body (a driven wheel's turn
+    slip, e.g. sliding in a fast turn): e = (xi_x - lateral * (w + slip)) / radius - angle, the predicted
+    turn minus the measured one (rad). With `jacobians`: (e, [d/da, d/db, d/dradius, d/dlateral, d/dslip])
+    as (1, n) arrays."""
     arc = Arc(a, b)
-    travel = arc.forward - lateral * arc.w
+    travel = arc.forward - lateral * (arc.w + slip)
     e = travel / radius - angle
     if not jacobians:
         return e, None
     inv = 1.0 / radius
     ha, hb = arc.pose_rows(inv * arc.al, inv * 0.5 * arc.w, inv * (arc.dal * arc.tx + 0.5 * arc.ty - lateral))
-    return e, [ha, hb, np.array([[-travel * inv * inv]]), np.array([[-arc.w * inv]])]
+    return e, [ha, hb, np.array([[-travel * inv * inv]]), np.array([[-(arc.w + slip) * inv]]),
+               np.array([[-lateral * inv]])]
 
 
 def gyro_residual(a, b, scale: float, bias: float, integral: float, dt: float, jacobians: bool = False):
