@@ -62,6 +62,28 @@ CASES = {
                        [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01,
                          "wheels": ["left", "passive"]}]),
         "factors[0].wheels: robot 'robot' has no passive wheel"),
+    "turn slip on the passive wheel": (
+        lambda: config(robot_description_data("passive_wheel_robot"),
+                       [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01,
+                         "turn_slip": {"sigma": 1e-4, "k": 3.0}}]),
+        "factors[0].turn_slip: the passive wheel is turned by the floor"),
+    "turn slip seeded without a gyro": (
+        lambda: config({"name": "two_wheels", "model": "diff_drive", "parameters": {
+            n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04), ("wheel_radius_right", 0.04),
+                                                          ("axle_length", 0.25))}},
+                       [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01,
+                         "wheels": ["left", "right"], "turn_slip": {"sigma": 1e-4, "k": 3.0, "seed_rate": 0.03}}]),
+        "factors[0].turn_slip.seed_rate: robot 'robot' has no gyro to seed slips from"),
+    "dead reckoning by a gyro the robot lacks": (
+        lambda: {**config(robot_description_data("passive_wheel_robot")) | {"factors": [
+            {"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01}]},
+                 "robots": {"robot": {"description": {"name": "two_wheels", "model": "diff_drive", "parameters": {
+                     n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04),
+                                                                   ("wheel_radius_right", 0.04), ("axle_length", 0.25))}},
+                     "states": {"stream": "wheels", "type": "pose2"}}},
+                 "initializers": [{"type": "wheels.dead_reckoning", "robot": "robot", "stream": "wheels",
+                                   "turn": "gyro"}]},
+        "initializers[0].turn: robot 'robot' has no gyro"),
     "a pose3 robot": (lambda: {**config(robot_description_data("passive_wheel_robot")),
                                "robots": {"robot": {"description": "passive_wheel_robot",
                                                     "states": {"stream": "wheels", "type": "pose3"}}}},
