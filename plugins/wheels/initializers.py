@@ -8,8 +8,8 @@ import numpy as np
 from fusionkit.api import Initializer, Spec, differential_drive_twist
 
 from .factors import require_gyro, require_wheels
-from .kinematics import gyro_integrals, increments, wheel_column
-from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
+from .kinematics import gyro_turns, increments, wheel_column
+from .model import AXLE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .rules import integrate
 
 
@@ -49,8 +49,8 @@ class DeadReckoning(Initializer):
         travel = [drive.nominal[r] * increments(stream.t, wheel_column(stream, drive, w), t)
                   for w, r in (("right", RADIUS_RIGHT), ("left", RADIUS_LEFT))]
         forward, turn = differential_drive_twist(*travel, drive.nominal[AXLE])
-        if spec["turn"] == "gyro":  # a calibrated gyro: true rate = scale * reading + bias
-            turn = drive.nominal[GYRO_SCALE] * gyro_integrals(stream, t) + drive.nominal[GYRO_BIAS] * np.diff(t)
+        if spec["turn"] == "gyro":  # a calibrated gyro
+            turn = gyro_turns(stream, drive, t)
         if spec["forward"] == "passive":
             passive = increments(stream.t, wheel_column(stream, drive, "passive"), t)
             forward = drive.nominal[PASSIVE_RADIUS] * passive + drive.passive_offset * turn

@@ -25,6 +25,8 @@ import numpy as np
 
 from fusionkit.api import DataError, Stream
 
+from .model import GYRO_BIAS, GYRO_SCALE
+
 GYRO, IMU_GYRO = "gyro", "gz"   # a wheel stream's gyro column (interval means); an IMU's z rate (samples)
 
 
@@ -75,3 +77,9 @@ def gyro_integrals(stream: Stream, times: np.ndarray) -> np.ndarray:
     if len(stream) < 2:
         raise DataError(f"{stream.origin or stream.name}: one IMU sample; integrating the gyro needs at least two")
     return trapezoid_increments(stream.t, stream.column(IMU_GYRO), times)
+
+
+def gyro_turns(stream: Stream, drive, times: np.ndarray) -> np.ndarray:
+    """(len(times) - 1,) heading change (rad) the gyro gives between consecutive `times` at the description's
+    scale and bias (drive: model.DiffDrive; a calibrated gyro): scale * integrated reading + bias * dt."""
+    return drive.nominal[GYRO_SCALE] * gyro_integrals(stream, times) + drive.nominal[GYRO_BIAS] * np.diff(times)
