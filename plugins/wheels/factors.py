@@ -11,9 +11,9 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import SCALAR, DataError, FactorExample, FactorType, Spec, differential_drive_twist, gaussian
+from fusionkit.api import SCALAR, DataError, FactorExample, FactorType, Spec, gaussian
 
-from .kinematics import GYRO, IMU_GYRO, gyro_integrals, gyro_turns, increments, inside, wheel_column
+from .kinematics import GYRO, IMU_GYRO, driven_twist, gyro_integrals, gyro_turns, increments, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .preintegration import preintegrate, preintegrated_residual
 from .residuals import encoder_residual, gyro_residual, lateral_residual, over_read
@@ -146,9 +146,7 @@ def seeded_slips(ctx, spec: Spec, stream, ks: np.ndarray) -> np.ndarray:
     robot = spec["robot"]
     drive = drive_of(ctx.robot(robot))
     t = ctx.state_set(robot, spec).t
-    travel = [drive.nominal[RADIUS[w]] * increments(stream.t, wheel_column(stream, drive, w), t) for w in ("right", "left")]
-    _, wheels = differential_drive_twist(*travel, drive.nominal[AXLE])
-    slip = wheels - gyro_turns(stream, drive, t)
+    slip = driven_twist(stream, drive, t)[1] - gyro_turns(stream, drive, t)
     return np.where(np.abs(slip) > spec["turn_slip"]["seed_rate"] * np.diff(t), slip, 0.0)[ks - 1]
 
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import Initializer, Spec, differential_drive_twist
+from fusionkit.api import Initializer, Spec
 
 from .factors import require_gyro, require_wheels
-from .kinematics import gyro_turns, increments, wheel_column
-from .model import AXLE, PASSIVE_RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
+from .kinematics import driven_twist, gyro_turns, increments, wheel_column
+from .model import PASSIVE_RADIUS, drive_of
 from .rules import integrate
 
 
@@ -46,9 +46,7 @@ class DeadReckoning(Initializer):
         stream = ctx.stream(spec["stream"])
         states = ctx.state_set(robot, spec)
         t = np.clip(states.t, stream.t[0], stream.t[-1])
-        travel = [drive.nominal[r] * increments(stream.t, wheel_column(stream, drive, w), t)
-                  for w, r in (("right", RADIUS_RIGHT), ("left", RADIUS_LEFT))]
-        forward, turn = differential_drive_twist(*travel, drive.nominal[AXLE])
+        forward, turn = driven_twist(stream, drive, t)
         if spec["turn"] == "gyro":  # a calibrated gyro
             turn = gyro_turns(stream, drive, t)
         if spec["forward"] == "passive":

@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import DataError, Stream
+from fusionkit.api import DataError, Stream, differential_drive_twist
 
-from .model import GYRO_BIAS, GYRO_SCALE
+from .model import AXLE, GYRO_BIAS, GYRO_SCALE, RADIUS
 
 GYRO, IMU_GYRO = "gyro", "gz"   # a wheel stream's gyro column (interval means); an IMU's z rate (samples)
 
@@ -83,3 +83,11 @@ def gyro_turns(stream: Stream, drive, times: np.ndarray) -> np.ndarray:
     """(len(times) - 1,) heading change (rad) the gyro gives between consecutive `times` at the description's
     scale and bias (drive: model.DiffDrive; a calibrated gyro): scale * integrated reading + bias * dt."""
     return drive.nominal[GYRO_SCALE] * gyro_integrals(stream, times) + drive.nominal[GYRO_BIAS] * np.diff(times)
+
+
+def driven_twist(stream: Stream, drive, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(forward travel m, heading change rad), each (len(times) - 1,), of the driven wheels' odometry between
+    consecutive `times` at the description's radii and axle length (drive: model.DiffDrive)."""
+    travel = [drive.nominal[RADIUS[w]] * increments(stream.t, wheel_column(stream, drive, w), times)
+              for w in ("right", "left")]
+    return differential_drive_twist(*travel, drive.nominal[AXLE])
