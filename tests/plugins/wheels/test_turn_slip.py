@@ -13,13 +13,15 @@ import numpy as np
 import pytest
 import yaml
 
+from bench_wheels_sim import trust_the_gyro
+from fusionkit.config.yamlio import Document
 from fusionkit.pipeline import estimate
+from fusionkit.plugins import registry
 from fusionkit.simulate import simulated_config
 from fusionkit_plugins.wheels.factors import encoder_factor
 from fusionkit_plugins.wheels.residuals import encoder_residual
 
 SLIDE = {"duration": 20.0, "path": "square", "faults": {"slide": {"turn_rate": 0.5, "slip": 0.2}}}
-TURN_SLIP = {"sigma": 1e-4, "k": 3.0, "seed_rate": 0.03}
 
 
 def test_a_slip_adds_to_the_turn_the_wheel_sees_and_its_jacobian_is_the_central_difference():
@@ -43,8 +45,11 @@ def test_a_slip_adds_to_the_turn_the_wheel_sees_and_its_jacobian_is_the_central_
 
 
 def end_error(seed: int, slips: bool, folder: Path) -> float:
-    with simulated_config("wheels.sim", SLIDE, seed=seed) as config:
-        truth = estimate(config).truth.calibration["robot"]
+    """The graph's end position error on sliding square `seed`, the true intrinsics given and fixed; with
+    `slips`, the benchmark's turn slips for a calibrated gyro (bench_wheels_sim.trust_the_gyro)."""
+    simulator = registry().get("simulators", "wheels.sim")
+    truth = simulator().simulate(simulator.resolve(SLIDE, Document(SLIDE, Path("<test>"))),
+                                 np.random.default_rng(seed)).truth_calibration["robot"]
     path = folder / f"calibration_{seed}.yaml"
     path.write_text(yaml.safe_dump({"fusionkit_calibration": 1, "robots": {"robot": {
         n: {"type": "scalar", "value": float(v["value"]), "fixed": True} for n, v in truth.items()}}}))
@@ -52,10 +57,7 @@ def end_error(seed: int, slips: bool, folder: Path) -> float:
     def edit(config):
         config["robots"]["robot"]["overrides"] = str(path)
         if slips:
-            for f in config["factors"]:
-                if f["type"] == "wheels.encoder" and f.get("wheels") == ["left", "right"]:
-                    f["turn_slip"] = dict(TURN_SLIP)
-            config["initializers"][0]["turn"] = "gyro"
+            trust_the_gyro(config)
     with simulated_config("wheels.sim", SLIDE, seed=seed, edit=edit) as config:
         result = estimate(config)
     end = result.trajectories["robot"].pose_array()[-1, :2]

@@ -29,6 +29,13 @@ def without_gyro(pars, desc):
     del pars["gyro_scale"], pars["gyro_bias"]
 
 
+def two_wheels() -> dict:
+    """A diff_drive description with the two driven wheels only: no passive wheel, no gyro."""
+    return {"name": "two_wheels", "model": "diff_drive", "parameters": {
+        n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04), ("wheel_radius_right", 0.04),
+                                                      ("axle_length", 0.25))}}
+
+
 def offset(value: float):
     return {"type": "scalar", "value": value, "fixed": True}
 
@@ -56,9 +63,7 @@ CASES = {
     "gyro factor on a robot without gyro": (edit(without_gyro),
                                             "factors[1].robot: robot 'robot' has no gyro"),
     "passive encoder on a robot without one": (
-        lambda: config({"name": "two_wheels", "model": "diff_drive", "parameters": {
-            n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04), ("wheel_radius_right", 0.04),
-                                                          ("axle_length", 0.25))}},
+        lambda: config(two_wheels(),
                        [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01,
                          "wheels": ["left", "passive"]}]),
         "factors[0].wheels: robot 'robot' has no passive wheel"),
@@ -68,19 +73,13 @@ CASES = {
                          "turn_slip": {"sigma": 1e-4, "k": 3.0}}]),
         "factors[0].turn_slip: the passive wheel is turned by the floor"),
     "turn slip seeded without a gyro": (
-        lambda: config({"name": "two_wheels", "model": "diff_drive", "parameters": {
-            n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04), ("wheel_radius_right", 0.04),
-                                                          ("axle_length", 0.25))}},
+        lambda: config(two_wheels(),
                        [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01,
                          "wheels": ["left", "right"], "turn_slip": {"sigma": 1e-4, "k": 3.0, "seed_rate": 0.03}}]),
         "factors[0].turn_slip.seed_rate: robot 'robot' has no gyro to seed slips from"),
     "dead reckoning by a gyro the robot lacks": (
-        lambda: {**config(robot_description_data("passive_wheel_robot")) | {"factors": [
-            {"type": "wheels.encoder", "robot": "robot", "stream": "wheels", "sigma": 0.01}]},
-                 "robots": {"robot": {"description": {"name": "two_wheels", "model": "diff_drive", "parameters": {
-                     n: {"type": "scalar", "value": v} for n, v in (("wheel_radius_left", 0.04),
-                                                                   ("wheel_radius_right", 0.04), ("axle_length", 0.25))}},
-                     "states": {"stream": "wheels", "type": "pose2"}}},
+        lambda: {**config(two_wheels(), [{"type": "wheels.encoder", "robot": "robot", "stream": "wheels",
+                                          "sigma": 0.01}]),
                  "initializers": [{"type": "wheels.dead_reckoning", "robot": "robot", "stream": "wheels",
                                    "turn": "gyro"}]},
         "initializers[0].turn: robot 'robot' has no gyro"),
