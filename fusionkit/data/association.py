@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 # an entry's `tolerance:` (s): a sample pairs with the nearest state at most this far away in time
 TOLERANCE_SCHEMA = {"type": "number", "minimum": 0, "default": 0.005}
@@ -51,6 +50,7 @@ def interpolate_poses(sample_t: np.ndarray, poses: np.ndarray, query_t: np.ndarr
 
     Returns (mask of queries inside the sample span and not across a gap > max_gap, (M, 7) poses).
     """
+    from scipy.spatial.transform import Rotation, Slerp
     if len(query_t) == len(sample_t) and np.array_equal(query_t, sample_t):
         return np.ones(len(query_t), dtype=bool), poses.copy()  # states clocked by this stream
     inside = (query_t >= sample_t[0]) & (query_t <= sample_t[-1])

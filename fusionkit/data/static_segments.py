@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .. import hookimpl
 from ..components import Source, SourceOutput, Spec
@@ -46,6 +45,7 @@ def constant_stretches(t: np.ndarray, values: np.ndarray, tolerance: float, min_
 
 def averaged(stream: Stream, stretches: list[tuple[float, float]]) -> Stream:
     """One sample per stretch at its middle time: the mean of the stream's samples inside it (poses as poses)."""
+    from scipy.spatial.transform import Rotation
     rows = [(stream.t >= a) & (stream.t <= b) for a, b in stretches]
     if any(not r.any() for r in rows):
         empty = next(i for i, r in enumerate(rows) if not r.any())

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..graph.noise import pose_sigma_schema
 
@@ -20,6 +19,7 @@ def smooth_trajectory(t: np.ndarray, amplitude: np.ndarray, frequency: np.ndarra
                       phase: np.ndarray, offset: np.ndarray, tilt: float = 0.1) -> np.ndarray:
     """(N, 7) poses: sinusoidal position per axis (m, Hz), heading along the velocity, small
     roll/pitch oscillation of `tilt` rad."""
+    from scipy.spatial.transform import Rotation
     w = 2 * np.pi * frequency
     pos = offset + amplitude * np.sin(w * t[:, None] + phase)
     vel = amplitude * w * np.cos(w * t[:, None] + phase)

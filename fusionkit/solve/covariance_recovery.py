@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-import scipy.linalg
 
 from ..graph.evaluator import GraphEvaluator
 from .factorization import eliminate
@@ -23,6 +22,7 @@ from .marginals import frontal_count
 def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
                         ordering: str = "colamd") -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key, from the QR Bayes tree."""
+    import scipy.linalg
     tree = eliminate(graph.linearize(values), True, ordering)
     dims = values.zeroVectors()
     cliques, parent_of = {}, {}

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-import scipy.linalg
 
 from ..graph.evaluator import GraphEvaluator
 
@@ -29,6 +28,7 @@ def frontal_count(cond: gtsam.GaussianConditional, dims: gtsam.VectorValues) -> 
 
 def tree_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int]) -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key."""
+    import scipy.linalg
     tree = graph.linearize(values).eliminateMultifrontal()
     dims = values.zeroVectors()
     cliques: dict[int, gtsam.GaussianConditional] = {}

@@ -26,7 +26,6 @@ Pulley, offset and scale initial values are replaced (the description's values a
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import POSE_COLUMNS, TOLERANCE_SCHEMA, fit_range_origin, Initializer, interpolate_poses, nearest, Spec
 
@@ -94,6 +93,7 @@ class MonteCarloCalibration(Initializer):
             raise spec.error("scale_range", f"expected [min, max]; got [{s0}, {s1}]")
 
     def initialize(self, ctx, spec: Spec) -> None:
+        from scipy.spatial.transform import Rotation
         robot = spec["robot"]
         desc = ctx.robot(robot)
         cdpr = cable_robot(desc)

@@ -35,8 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import brentq, nnls
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, ConfigError, clock_times, noisy, odometry, pose_stream,
                            poses_from_array, robot_description_data, sample_times, Simulator, SourceOutput, Stream)
@@ -133,6 +131,7 @@ def gravity_wrench(rot: np.ndarray, geo: Geometry) -> np.ndarray:
 
 def static_tensions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, n) non-negative tensions solving J^T T = -w_gravity in the least-squares sense."""
+    from scipy.optimize import nnls
     A, w = wrench_matrix(pos, rot, geo), gravity_wrench(rot, geo)
     return np.array([nnls(Ak, -wk)[0] for Ak, wk in zip(A, w)])
 
@@ -150,6 +149,7 @@ def home_position(desc: dict) -> np.ndarray:
     offsets are negative (relative encoders zeroed at home: l0 = -length at home), the height at
     which the mean nominal length equals -mean(offset); else half way up to the pulleys. Always at
     least MIN_CLEARANCE below the lowest pulley."""
+    from scipy.optimize import brentq
     geo = nominal_geometry(desc)
     top = geo.pulleys[:, 2].min() - geo.attachments[:, 2].max() - MIN_CLEARANCE
     offsets = np.asarray(desc["parameters"]["offset"].get("values", [0.0]), float)
@@ -208,6 +208,7 @@ def workspace_extent(desc: dict, home: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def commanded_trajectory(t: np.ndarray, desc: dict, duration: float | None = None) -> Plan:
     """The plan at times `t` (s) of a sequence lasting `duration` (default: t's span plus one interval)."""
+    from scipy.spatial.transform import Rotation
     home = home_position(desc)
     plus, minus = workspace_extent(desc, home)
     room = np.minimum(plus, minus)
@@ -268,6 +269,7 @@ def length_jacobian(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarr
 
 
 def _moved(pos: np.ndarray, rot: np.ndarray, twist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.spatial.transform import Rotation
     return pos + twist[:, 3:], Rotation.from_rotvec(twist[:, :3]).as_matrix() @ rot
 
 
@@ -356,6 +358,7 @@ class CdprSimulator(Simulator):
         return _scaled(params["vo_sigma"], factor)
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        from scipy.spatial.transform import Rotation
         p = self._params(params)
         desc = robot_description_data(p["robot"])
         nominal = nominal_geometry(desc)

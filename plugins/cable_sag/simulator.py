@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, pose_stream, poses_from_array, robot_description_data,
                            Simulator, SourceOutput, Stream)
@@ -119,6 +118,7 @@ class SagStaticSimulator(Simulator):
         return {"poses": POSE_COLUMNS, "lengths": tuple(f"l{i}" for i in range(4)), "force": ("f",)}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        from scipy.spatial.transform import Rotation
         p = self._params(params)
         robot, nominal = shipped_robot(p["robot"])
         if p["com_error"] > 0:  # the true centre of mass is not the description's: statics tilt the robot otherwise

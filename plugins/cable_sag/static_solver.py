@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .statics import Equilibrium, SagRobot, equilibrium
 
@@ -114,6 +113,7 @@ def inverse_pose(t: np.ndarray, pulleys: np.ndarray, robot: SagRobot, yaw: float
 def forward_pose(lengths: np.ndarray, pulleys: np.ndarray, robot: SagRobot, R0: np.ndarray,
                  t0: np.ndarray) -> StaticPose:
     """Equilibrium pose for the cable arc lengths (m), by Newton from the guess (R0, t0)."""
+    from scipy.spatial.transform import Rotation
     lengths = np.asarray(lengths, float)
 
     def fn(state):

@@ -31,8 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import chi2 as chi2_dist
 
 
 CURVATURE = (None, np.log(100.0))  # w's upper bound: p2 = -(p1^2 / (4 LOG_A_ROOM) + exp(w)), c >= 0.1
@@ -111,6 +109,7 @@ class _Problem:
 
     def solve(self, q0: np.ndarray):
         """The search from q0: a fit, or None (not representable or admissible)."""
+        from scipy.optimize import least_squares
         with np.errstate(over="ignore", invalid="ignore"):
             sol = least_squares(self.residual, q0, jac=self.jacobian, method="lm", max_nfev=50 * len(q0))
             return self.admit(*self.slopes(sol.x), self.amplitudes(sol.x))
@@ -125,6 +124,7 @@ class _Problem:
 
     def polish(self, fit):
         """The fit refined with every A, p1, p2 free (p2 < 0), if that lowers chi^2 and stays admissible."""
+        from scipy.optimize import least_squares
         chi2, p1, p2, A, _ = fit
         n = len(A)
         lo, hi = np.tile([-np.inf, -np.inf, -np.inf], n), np.tile([np.inf, np.inf, -1e-9], n)
@@ -270,6 +270,7 @@ class AlphaFit:
 
 def fit_alpha(error: np.ndarray, commanded: np.ndarray) -> AlphaFit:
     """alpha of sigma = alpha |u| from errors e of commanded amounts u (zero-mean Gaussian model)."""
+    from scipy.stats import chi2 as chi2_dist
     r = np.asarray(error, float) / np.abs(np.asarray(commanded, float))
     n = len(r)
     value = float(np.sqrt(np.mean(r * r)))

@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import log_ndtr
 
 from .irmodel import Bank
 from .walls import ray_distances
@@ -35,6 +34,7 @@ HALF_LOG_2PI = 0.5 * np.log(2.0 * np.pi)
 
 def censored_residual(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """e = sqrt(-2 log Phi(-u)) and de/du, stable for any u (e -> 0 as u -> -inf)."""
+    from scipy.special import log_ndtr
     u = np.asarray(u, float)
     log_pdf = -0.5 * u * u - HALF_LOG_2PI
     lc = log_ndtr(-u)                      # log Phi(-u) <= 0

@@ -11,15 +11,17 @@ parameter of the robot ([accelerometer (3), gyroscope (3)]); per-state velocitie
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import gtsam
 import numpy as np
-
-from scipy.sparse import coo_matrix
-from scipy.sparse.linalg import lsqr
 
 from fusionkit.api import POSE_COLUMNS, VELOCITY3, FactorExample, FactorType, Initializer, Spec, held_intervals
 
 from .factors import odometry_pairs
+
+if TYPE_CHECKING:
+    from scipy.sparse import coo_matrix
 
 NAME = {"type": "string"}
 IMU_COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz")
@@ -139,6 +141,7 @@ def scale_rows(dp_odo: np.ndarray, R: np.ndarray, dp: np.ndarray, dv: np.ndarray
     """The linear system in x = [s, v_0, v_1, ...] (scale, world velocities of the states) of N odometry pairs
     (ka, kb) dt apart: s dp_odo - v_a dt = R_a dp + g dt^2 / 2 and v_b - v_a = R_a dv + g dt (the
     preintegrated increments dp, dv about a zero bias, R_a the world attitude of state a, g = [0, 0, -gravity])."""
+    from scipy.sparse import coo_matrix
     n = len(ka)
     g = np.array([0.0, 0.0, -gravity])
     rows = np.arange(6 * n).reshape(n, 2, 3)
@@ -200,6 +203,7 @@ class OdometryScaleFromImu(Initializer):
     def initialize(self, ctx, spec: Spec) -> None:
         """The odometry's frame is taken as the world frame turned by the first state's initial attitude
         (pose.origin's), as pose.dead_reckoning does; pairs across a gap of the odometry are left out."""
+        from scipy.sparse.linalg import lsqr
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         ka, before, after = odometry_pairs(ctx, spec, robot)

@@ -23,7 +23,6 @@ Streams: `imu` (t, ax, ay, az, gx, gy, gz), `vo` (poses). Truth: the trajectory,
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, odometry, pose_stream, poses_from_array, sample_times,
                            Simulator, SourceOutput, Stream)
@@ -38,6 +37,7 @@ NONNEG = {"type": "number", "minimum": 0}
 
 def _room_path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions, world accelerations and attitudes (N, 3, 3) in the room frame (z up)."""
+    from scipy.spatial.transform import Rotation
     w = 2 * np.pi / LAP
     h, f, ph = np.array([3.0, 2.5, 0.5]), np.array([w, 2 * w, 3 * w]), np.array([0.3, 1.1, 0.0])
     pos = h * np.sin(f * t[:, None] + ph)
@@ -60,6 +60,7 @@ def body_path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def body_rates(t: np.ndarray, h: float = 1e-4) -> np.ndarray:
     """Body angular velocity (N, 3) by central differences of the attitude (error O(h^2))."""
+    from scipy.spatial.transform import Rotation
     Rm, Rp = body_path(t - h)[2], body_path(t + h)[2]
     return Rotation.from_matrix(np.einsum("nji,njk->nik", Rm, Rp)).as_rotvec() / (2 * h)
 
@@ -102,6 +103,7 @@ class ImuVoSimulator(Simulator):
         return {"imu": IMU_COLUMNS, "vo": POSE_COLUMNS}
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        from scipy.spatial.transform import Rotation
         p = {**self.defaults, **params}
         t = sample_times(p["duration"], p["camera_rate"])
         pos, _, R = body_path(t)

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
                            pose_sigmas)
@@ -71,6 +70,7 @@ def tool_type(desc, spec: Spec) -> str:
 
 def pose_matrices(rows: np.ndarray) -> np.ndarray:
     """(N, 4, 4) poses from (N, 7) rows x y z qx qy qz qw (quaternions normalized)."""
+    from scipy.spatial.transform import Rotation
     rows = np.asarray(rows, float).reshape(-1, 7)
     T = np.zeros((len(rows), 4, 4))
     T[:, :3, :3] = Rotation.from_quat(rows[:, 3:]).as_matrix()

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from . import batch
 from .chain import SerialChain
@@ -68,6 +67,7 @@ class Identifiability:
 def analyze(A: np.ndarray, scale: np.ndarray) -> Identifiability:
     """Rank, held columns and data-only sigmas of the whitened regressor A (columns in priority order,
     `scale` the characteristic size of each column's parameter)."""
+    import scipy.linalg
     n = A.shape[1]
     As = A * scale
     _, R, piv = scipy.linalg.qr(As, mode="economic", pivoting=True)

@@ -26,7 +26,6 @@ the trajectory, the anchors, the IMU bias and the clocks.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, POSE_NOISE_SCHEMA, clock_times, pose_stream, sample_times, Simulator,
                            SourceOutput, Stream)
@@ -59,6 +58,7 @@ def _clock_parameters(clocks: dict) -> dict[str, float]:
 
 def _mocap(p: dict, clock, rng: np.random.Generator) -> Stream:
     """Motion capture at `mocap_rate`: the body pose at each stamp's true time, noisy in the body frame."""
+    from scipy.spatial.transform import Rotation
     t = sample_times(p["duration"], p["mocap_rate"])
     pos, _, R = flight(clock_times(clock, t))
     sigma = np.array([p["mocap_sigma"]["rotation"]] * 3 + [p["mocap_sigma"]["translation"]] * 3)
@@ -71,6 +71,7 @@ def _mocap(p: dict, clock, rng: np.random.Generator) -> Stream:
 
 def flight(t: np.ndarray, phase: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (N, 3), world accelerations (N, 3) and attitudes (N, 3, 3) at the times t."""
+    from scipy.spatial.transform import Rotation
     w = 2 * np.pi / LAP
     c, h = np.array([5.0, 4.0, 1.5]), np.array([3.5, 2.8, 0.5])
     f = np.array([w, 2 * w, 3 * w])
@@ -86,6 +87,7 @@ def flight(t: np.ndarray, phase: float = 0.0) -> tuple[np.ndarray, np.ndarray, n
 
 def body_rates(t: np.ndarray, phase: float = 0.0, h: float = 1e-4) -> np.ndarray:
     """Body angular velocity (N, 3) by central differences of the attitude (error O(h^2))."""
+    from scipy.spatial.transform import Rotation
     _, _, Rm = flight(t - h, phase)
     _, _, Rp = flight(t + h, phase)
     return Rotation.from_matrix(np.einsum("nji,njk->nik", Rm, Rp)).as_rotvec() / (2 * h)
@@ -122,6 +124,7 @@ class UwbDroneSimulator(Simulator):
         return out
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
+        from scipy.spatial.transform import Rotation
         p = {**self.defaults, **params}
         anchors = np.asarray(ANCHOR_POINTS)
         clocks = p["time_offset"]

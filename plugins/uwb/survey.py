@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from scipy.ndimage import median_filter
 
 SPAN_RATIO = 3.0  # the d-th singular value must exceed the first misfit one by this (path spans d-D)
 SCREEN_WINDOW = 4.0  # s: running median of each anchor's ranges, longer than a non-line-of-sight burst
@@ -44,6 +43,7 @@ def range_matrix(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.nd
 def line_of_sight(t_ranges: np.ndarray, anchor_index: np.ndarray, ranges: np.ndarray) -> np.ndarray:
     """Mask of the ranges (m) within SCREEN_JUMP of their anchor's running median over SCREEN_WINDOW
     s: a non-line-of-sight burst (a reflection, metres long for a second or so) stands out of it."""
+    from scipy.ndimage import median_filter
     keep = np.ones(len(ranges), bool)
     for j in np.unique(anchor_index):
         m = np.flatnonzero(anchor_index == j)
