@@ -9,9 +9,7 @@ from __future__ import annotations
 from importlib.resources import files
 from typing import TYPE_CHECKING
 
-import yaml
-
-from ..config.yamlio import Document, SafeLoader, parse_yaml
+from ..config.yamlio import Document, parse_yaml
 from ..errors import ConfigError
 
 if TYPE_CHECKING:
@@ -54,7 +52,8 @@ def robot_description_data(name: str, model: str | None = None, user: str = "") 
     `robots()` may change it and return it). With `model`: a ConfigError, naming `user` (e.g. the
     simulator), unless the description is of that robot model."""
     from ..plugins import registry
-    data = yaml.load(registered_file(name, registry()).read_text(encoding="utf-8"), Loader=SafeLoader)  # noqa: S506
+    file = registered_file(name, registry())
+    data = parse_yaml(file.read_text(encoding="utf-8"), str(file)).data
     if model is not None and data.get("model") != model:
         raise ConfigError(f"{user + ': ' if user else ''}description {name!r} is a {data.get('model', 'generic')!r} "
                           f"robot; expected a {model} one")

@@ -99,11 +99,9 @@ class LinearContainers:
             by_group.setdefault(id(g), (g, []))[1].append(row)
         for g, rows in by_group.values():
             for row, linear in zip(rows, g.subset(np.asarray(rows)).linear_factors(reader)):
-                point = gtsam.Values()
-                for k in g.keys[row].tolist():
-                    point.insert(k, self.vartype_of(k).read(at, k))
                 out.entries.append((out.graph.size(), g, row))
-                out.graph.add(gtsam.LinearContainerFactor(linear, point))
+                # GTSAM keeps only the factor's own keys of the point it is given (LinearContainerFactor.cpp)
+                out.graph.add(gtsam.LinearContainerFactor(linear, at))
         return out
 
     def added(self, step: Step, new_indices) -> None:

@@ -6,7 +6,7 @@ import gtsam
 import numpy as np
 
 from fusionkit.data.stream import pose_array_from, pose_stream
-from fusionkit.eval.trajectory import fit_alignment, position_consistency, trajectory_errors
+from fusionkit.eval.trajectory import fit_alignment, position_consistency, relative_pose_errors, trajectory_errors
 
 
 def _circle(n: int = 200):
@@ -62,6 +62,24 @@ def test_rpe_of_one_10_cm_step_is_its_share_of_49_steps():
     # 49 relative steps, one of which is off by 0.1 m (in the body frame: same norm)
     assert abs(out["rpe_translation_rmse_m"] - np.sqrt(0.1 ** 2 / 49)) < 1e-9
     assert out["rpe_rotation_rmse_deg"] < 1e-6
+
+
+def test_relative_pose_errors_equal_evos_rpe_per_frame_to_1e_12_on_random_3d_paths():
+    """The vectorized per-frame RPE against evo's own (its RPE with delta 1 frame, translation part and
+    rotation angle), on random poses with turns up to 180 degrees between frames."""
+    from evo.core import metrics
+    from evo.core.trajectory import PosePath3D
+    rng = np.random.default_rng(4)
+
+    def path(n):
+        return [gtsam.Pose3(gtsam.Rot3.Expmap(rng.uniform(-1.8, 1.8, 3)), rng.normal(0, 2, 3)).matrix() for _ in range(n)]
+    truth, estimate = path(60), path(60)
+    translation, angle = relative_pose_errors(np.array(truth), np.array(estimate))
+    for relation, ours in ((metrics.PoseRelation.translation_part, translation),
+                           (metrics.PoseRelation.rotation_angle_deg, np.degrees(angle))):
+        rpe = metrics.RPE(relation, delta=1, delta_unit=metrics.Unit.frames)
+        rpe.process_data((PosePath3D(poses_se3=truth), PosePath3D(poses_se3=estimate)))
+        assert np.max(np.abs(rpe.error - ours)) < 1e-12 * max(1.0, np.max(ours))
 
 
 def test_gaussian_errors_fall_within_1_2_3_sigma_at_68_95_99_7_percent():
