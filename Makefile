@@ -24,7 +24,7 @@ quickstart: bytecode
 	$(BIN)/fusionkit run configs/quickstart.yaml --out out/quickstart
 
 test: bytecode
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py --quick

@@ -93,3 +93,9 @@ def pytest_configure(config):
     points use (fusionkit.threads), so a busy core does not multiply the suite's time."""
     from fusionkit.threads import one_blas_thread
     config._fusionkit_blas_limit = one_blas_thread()
+
+
+def pytest_collection_modifyitems(items):
+    """The executed tutorials (the longest tests, 7-46 s each) first: with `--dist worksteal` (make test)
+    the other worker takes the short tests meanwhile, and no tutorial starts last and runs alone."""
+    items.sort(key=lambda item: "test_tutorials.py" not in item.nodeid)
