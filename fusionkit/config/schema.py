@@ -74,6 +74,7 @@ CONFIG_SCHEMA = {
                 "warmup": {"type": "number", "minimum": 0, "default": 0},
                 "new_states": {"enum": ["initial", "carried"], "default": "initial"},
                 "relinearize_threshold": {**POSITIVE, "default": 0.01},
+                "updates_per_step": {"type": "integer", "minimum": 1, "default": 1},
                 "max_cost_ratio": POSITIVE,  # default by type: SOLVER_TYPE_DEFAULTS
                 "marginals": {"type": "boolean", "default": True},
                 "a_posteriori_sigmas": {"type": "boolean", "default": False},

@@ -116,6 +116,16 @@ def _isam2_update(isam: gtsam.ISAM2, containers: LinearContainers, records, valu
     return isam.calculateEstimate()
 
 
+def _isam2_step(isam: gtsam.ISAM2, containers: LinearContainers, records, values: gtsam.Values,
+                updates: int) -> gtsam.Values:
+    """A time step in `updates` iSAM2 updates: the first adds `records`, each further one (no new factors)
+    takes one more Gauss-Newton step, relinearizing what moved (`solver.updates_per_step`)."""
+    estimate = _isam2_update(isam, containers, records, values)
+    for _ in range(updates - 1):
+        estimate = _isam2_update(isam, containers, [], gtsam.Values())
+    return estimate
+
+
 def _settle(isam: gtsam.ISAM2, containers: LinearContainers, estimate: gtsam.Values,
             updates: int = 10) -> gtsam.Values:
     """Updates without new factors until the estimate stops moving (at most `updates`): each update takes
@@ -179,8 +189,8 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
         estimate, _ = _timed_step(problem, t, lambda: _isam2_update(isam, containers, first, values))
         warmup = time.perf_counter() - tic
     for i, (t, records, new) in enumerate(steps):
-        estimate, dt = _timed_step(problem, t,
-                                   lambda: _isam2_update(isam, containers, records, new_values(problem, settings, new, estimate)))
+        estimate, dt = _timed_step(problem, t, lambda: _isam2_step(
+            isam, containers, records, new_values(problem, settings, new, estimate), settings["updates_per_step"]))
         latency.append(dt)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
@@ -225,10 +235,14 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         warmup = time.perf_counter() - tic
 
     def update(records, values: gtsam.Values, stamps: dict, leaving: list[int]) -> gtsam.Values:
-        step = containers.step(records, smoother, values)
-        smoother.update(step.graph, values, stamps, step.remove)
-        containers.added(step, smoother.getISAM2Result().getNewFactorsIndices())
-        containers.forget(leaving)  # marginalized inside the update, with their factors
+        """The time step's updates: the first adds its factors and variables and marginalizes `leaving`;
+        each further one (`solver.updates_per_step`) takes one more Gauss-Newton step in the same window."""
+        for n in range(settings["updates_per_step"]):
+            step = containers.step(records, smoother, values) if n == 0 else containers.step([], smoother, gtsam.Values())
+            smoother.update(step.graph, values if n == 0 else gtsam.Values(), stamps if n == 0 else {}, step.remove)
+            containers.added(step, smoother.getISAM2Result().getNewFactorsIndices())
+            if n == 0:
+                containers.forget(leaving)  # marginalized inside the update, with their factors
         return smoother.calculateEstimate()
 
     for i, (t, records, new) in enumerate(steps):
