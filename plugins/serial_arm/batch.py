@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
+from .lazy_pinocchio import pin
 
 from fusionkit.api import lie
 from .chain import PIN_TO_GTSAM, SerialChain

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
-import pinocchio as pin
+from .lazy_pinocchio import pin
 
 from fusionkit.api import lie
 

@@ -18,7 +18,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
+from .lazy_pinocchio import pin
 
 from fusionkit.api import RobotDescription
 
