@@ -234,15 +234,18 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             covariances.update(tree_marginals(GraphEvaluator(first), warm_values, set(early) & marginal_keys))
         warmup = time.perf_counter() - tic
 
+    def add(records, values: gtsam.Values, stamps: dict) -> None:
+        step = containers.step(records, smoother, values)
+        smoother.update(step.graph, values, stamps, step.remove)
+        containers.added(step, smoother.getISAM2Result().getNewFactorsIndices())
+
     def update(records, values: gtsam.Values, stamps: dict, leaving: list[int]) -> gtsam.Values:
-        """The time step's updates: the first adds its factors and variables and marginalizes `leaving`;
-        each further one (`solver.updates_per_step`) takes one more Gauss-Newton step in the same window."""
-        for n in range(settings["updates_per_step"]):
-            step = containers.step(records, smoother, values) if n == 0 else containers.step([], smoother, gtsam.Values())
-            smoother.update(step.graph, values if n == 0 else gtsam.Values(), stamps if n == 0 else {}, step.remove)
-            containers.added(step, smoother.getISAM2Result().getNewFactorsIndices())
-            if n == 0:
-                containers.forget(leaving)  # marginalized inside the update, with their factors
+        """The time step: its factors and variables added (`leaving` marginalized in that update), then
+        `solver.updates_per_step` - 1 updates without new factors, one more Gauss-Newton step each."""
+        add(records, values, stamps)
+        containers.forget(leaving)  # marginalized inside the update, with their factors
+        for _ in range(settings["updates_per_step"] - 1):
+            add([], gtsam.Values(), {})
         return smoother.calculateEstimate()
 
     for i, (t, records, new) in enumerate(steps):
