@@ -86,17 +86,16 @@ def test_fixed_lag_tracks_a_drifting_radius_with_preintegrated_odometry_within_3
     assert abs(z[-1]) < 3 and np.mean(np.abs(z[len(z) // 2:]) < 3) > 0.95
 
 
-def test_two_updates_per_step_keep_a_per_step_fixed_lag_at_the_batch_error_where_one_loses_it():
+def test_two_updates_per_step_keep_a_per_step_fixed_lag_within_1_mm_over_30_s():
     """Per-wheel encoder factors at 20 Hz with the camera, fixed-lag 2 s after a 5 s batch warm-up, 30 s
-    figure eight (the speed benchmark's case): one Gauss-Newton step per update loses the track after
-    about 25 s (ATE 32 mm); a second update per step keeps it at the batch's 0.6 mm."""
-    ate = {}
-    for updates in (1, 2):
-        def edit(config, updates=updates):
-            config["factors"].append({"type": "pose.absolute", "robot": "robot", "stream": "camera",
-                                      "sigma": {"rotation": 0.02, "translation": 0.0028}})
-            config["solver"] = {"type": "fixed_lag", "warmup": 5.0, "lag": 2.0, "relinearize_threshold": 1e-4,
-                                "updates_per_step": updates}
-        with simulated_config("wheels.sim", {"duration": 30.0, "path": "figure_eight"}, seed=0, edit=edit) as config:
-            ate[updates] = estimate(config, keep_rejected=True).evaluation["trajectories"]["robot"]["ate_rmse_m"]
-    assert ate[2] < 0.001 and ate[1] > 10 * ate[2], ate
+    figure eight (the speed benchmark's quick case): with one Gauss-Newton step per update the smoother
+    loses the track after about 25 s (ATE 32 mm: `bench_wheels_speed.py --quick` with updates_per_step 1,
+    not rerun here to keep the suite short); a second update per step keeps it at the batch's 0.6 mm."""
+    def edit(config):
+        config["factors"].append({"type": "pose.absolute", "robot": "robot", "stream": "camera",
+                                  "sigma": {"rotation": 0.02, "translation": 0.0028}})
+        config["solver"] = {"type": "fixed_lag", "warmup": 5.0, "lag": 2.0, "relinearize_threshold": 1e-4,
+                            "updates_per_step": 2}
+    with simulated_config("wheels.sim", {"duration": 30.0, "path": "figure_eight"}, seed=0, edit=edit) as config:
+        ate = estimate(config, keep_rejected=True).evaluation["trajectories"]["robot"]["ate_rmse_m"]
+    assert ate < 0.001, ate
