@@ -125,12 +125,9 @@ def _encoder_error(side: float, angle: float, sigma: float, k: float | None, dir
 
 
 def encoder_factor(keys: list[int], side: float, angle: float, noise, sigma: float,
-                   over_read_k: float | None = None, direction: int = 0, has_lateral: bool | None = None,
+                   over_read_k: float | None = None, direction: int = 0, has_lateral: bool = False,
                    has_slip: bool = False) -> gtsam.CustomFactor:
-    """keys: pose a, pose b, radius[, lateral parameter][, turn slip]; `has_lateral` defaults to whether a
-    fourth key is there besides a slip."""
-    if has_lateral is None:
-        has_lateral = len(keys) > 3 + has_slip
+    """keys: pose a, pose b, radius[, lateral parameter (`has_lateral`)][, turn slip (`has_slip`)]."""
     return gtsam.CustomFactor(noise, keys, partial(_encoder_error, side, float(angle), sigma, over_read_k, direction,
                                                    has_lateral, has_slip))
 
