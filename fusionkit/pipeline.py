@@ -32,7 +32,7 @@ from .plugins import registry
 from .progress import Progress
 from .threads import one_blas_thread
 from .robots.calibration_file import calibration_entries
-from .solve import solve
+from .solve import noise_scales, solve
 from .solve.result import SolveResult
 
 
@@ -282,6 +282,44 @@ def _solve_refined(config: RunConfig, streams: dict[str, Stream], problem: Probl
     return refined, second
 
 
+def _solve_noise_scales(config: RunConfig, streams: dict[str, Stream], problem: Problem, marginal_keys: set[int],
+                        progress) -> tuple[Problem, SolveResult]:
+    """`noise_scale: estimate`: solve, estimate those entries' noise scales from the residuals and their
+    redundancy (solve/noise_scales.py), rebuild the graph with them and solve again from the estimate, until
+    the scales settle; the last solve gives the covariances. Iterations and seconds count every solve."""
+    iteration = noise_scales.ScaleIteration([spec.label for spec in config.factors
+                                             if spec.get("noise_scale") == "estimate"])
+    quiet = {**config.solver, "marginals": False}
+    iterations = seconds = 0
+    for rounds in range(1, noise_scales.MAX_ROUNDS + 1):
+        _stage(progress, f"noise scales, round {rounds}: " + ", ".join(f"{k} {v:.4g}" for k, v in iteration.scales.items()))
+        solution = solve(problem, quiet, set(), progress)
+        iterations, seconds = iterations + solution.iterations, seconds + solution.seconds
+        fits = noise_scales.entry_fits(problem, solution.values, set(iteration.scales))
+        iteration.update(fits)
+        if iteration.done:  # the scales of this solve fit the data
+            break
+        problem = _rebuilt_with_scales(config, streams, iteration.scales, solution.values)
+    else:
+        problem.notes.append(f"noise scales: chi-square / redundancy still off 1 after {noise_scales.MAX_ROUNDS} "
+                             "rounds (by more than a tenth of its standard deviation); the last scales are used")
+    final = solve(problem, config.solver, marginal_keys, progress)
+    final.iterations += iterations
+    final.seconds += seconds
+    if not iteration.done:
+        fits = noise_scales.entry_fits(problem, final.values, set(iteration.scales))
+    final.noise_scales = noise_scales.scale_report(iteration.scales, fits, rounds)
+    return problem, final
+
+
+def _rebuilt_with_scales(config: RunConfig, streams: dict[str, Stream], scales: dict[str, float],
+                         initial: gtsam.Values) -> Problem:
+    """The graph built again with the entries' noise scales, starting from `initial`."""
+    factors = [dataclasses.replace(spec, data={**spec.data, "noise_scale": scales[spec.label]})
+               if spec.label in scales else spec for spec in config.factors]
+    return dataclasses.replace(build_problem(dataclasses.replace(config, factors=factors), streams), initial=initial)
+
+
 def estimate(config: RunConfig, progress: Progress | None = None, keep_rejected: bool = False) -> RunResult:
     """Run everything short of writing files (with one BLAS thread, see fusionkit.threads);
     `progress` hears of each stage and solver iteration. A solution the chi-square gate refuses
@@ -307,6 +345,8 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     marginal_keys = _marginal_keys(problem, config.output["state_covariances"] or truth.families(config))
     if config.refined_factors:
         problem, solution = _solve_refined(config, streams, problem, marginal_keys, progress)
+    elif any(spec.get("noise_scale") == "estimate" for spec in config.factors):
+        problem, solution = _solve_noise_scales(config, streams, problem, marginal_keys, progress)
     else:
         solution = solve(problem, config.solver, marginal_keys, progress)
     timings["solve_and_marginals_s"] = time.perf_counter() - tic

@@ -214,15 +214,18 @@ GRAPH = {"state_every": 20, "wheel_sigma": 0.001, "mocap": {"rotation": 0.01, "t
 
 def graph_config(wheels: Path, mocap: Path, settings: dict = GRAPH) -> dict:
     """A fusionkit config calibrating optiodom_robot's radii and axle length: states every
-    `state_every` cycles, the driven wheels preintegrated between them, the motion-capture poses at them."""
+    `state_every` cycles, the driven wheels preintegrated between them, the motion-capture poses at them;
+    with `settings["noise_scales"]` both entries' noise scales estimated from the data (`noise_scale: estimate`)."""
+    scale = {"noise_scale": "estimate"} if settings.get("noise_scales") else {}
     return {"name": "optiodom_calibration",
             "robots": {"robot": {"description": "optiodom_robot",
                                  "states": {"stream": "wheels", "every": settings["state_every"], "type": "pose2"}}},
             "sources": [{"type": "csv", "name": "wheels", "path": str(wheels)},
                         {"type": "tum", "name": "mocap", "path": str(mocap)}],
-            "factors": [{"type": "pose.absolute", "robot": "robot", "stream": "mocap", "sigma": settings["mocap"]},
+            "factors": [{"type": "pose.absolute", "robot": "robot", "stream": "mocap", "sigma": settings["mocap"],
+                         **scale},
                         {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels",
-                         "sigma": settings["wheel_sigma"]}],
+                         "sigma": settings["wheel_sigma"], **scale}],
             "initializers": [{"type": "pose.interpolate", "robot": "robot", "stream": "mocap"}],
             "solver": {"type": "batch", "method": "lm"}, "output": {"plots": False}}
 

@@ -14,12 +14,13 @@ from ..robots.checked import check_with_model
 from ..robots.description import RobotDescription, load_description
 from .defaults import with_defaults
 from .overrides import apply_override, new_key_note, parse_key_path
-from .schema import CONFIG_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against
+from .schema import CONFIG_SCHEMA, NOISE_SCALE_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against
 from .yamlio import Document, load_yaml
 from ..time_offset.config import KEY as TIME_OFFSET, SCHEMA as TIME_OFFSET_SCHEMA, check_time_offset
 
 COMMON_ENTRY_KEYS = {"type", "label"}
-FACTOR_KEYS = {"robust": ROBUST_SCHEMA, TIME_OFFSET: TIME_OFFSET_SCHEMA}  # every factor entry's, besides its type's
+FACTOR_KEYS = {"robust": ROBUST_SCHEMA, "noise_scale": NOISE_SCALE_SCHEMA,  # every factor entry's, besides its type's
+               TIME_OFFSET: TIME_OFFSET_SCHEMA}
 
 
 @dataclass
@@ -224,6 +225,7 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
                 check_time_offset(spec, type(obj), scope)
     solver = solver_settings(dict(doc.data.get("solver") or {}))
     refined = _refined_factors(doc, solver, factors, factor_objs, scope)
+    _check_estimated_noise_scales(factors, solver)
 
     truth = with_defaults(CONFIG_SCHEMA["properties"]["truth"], dict(doc.data.get("truth") or {}))
     for robot, file in (truth.get("trajectories") or {}).items():
@@ -244,6 +246,22 @@ def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
                      robots, sources, factors, initializers, solver, truth,
                      with_defaults(CONFIG_SCHEMA["properties"]["output"], dict(doc.data.get("output") or {})),
                      streams, stream_source, refined, notes)
+
+
+def _check_estimated_noise_scales(factors: list[Spec], solver: dict) -> None:
+    """`noise_scale: estimate` re-solves the whole graph each round: a batch solve, Gaussian noise (a robust
+    kernel's loss is not a chi-square), one solve per round (not with solver.refine's second one)."""
+    for spec in factors:
+        if spec.get("noise_scale") != "estimate":
+            continue
+        if solver["type"] != "batch":
+            raise spec.error("noise_scale", f"`estimate` needs solver.type batch (got {solver['type']}): each round "
+                             "solves the whole graph again")
+        if spec.get("robust"):
+            raise spec.error("noise_scale", "`estimate` needs Gaussian noise; remove `robust:` from this entry "
+                             "or give the scale as a number")
+        if solver.get("refine"):
+            raise spec.error("noise_scale", "`estimate` cannot be combined with solver.refine")
 
 
 def _refined_factors(doc: Document, solver: dict, factors: list[Spec], objs: list, scope) -> list[Spec]:

@@ -18,7 +18,7 @@ from ..robots.description import Parameter, RobotDescription
 from ..time_offset.config import TimeOffset
 from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
-from .noise import gaussian, with_kernel
+from .noise import gaussian, noise_scale, with_kernel
 from .variables import VarType, vartype_named
 from .evaluator import GraphEvaluator
 from .vectorized import InstanceCache, VectorizedGroup, VectorizedResidual
@@ -102,6 +102,10 @@ class Problem:
         return self._evaluator
 
 
+def _sigma_key(model: gtsam.noiseModel.Base) -> tuple:
+    return tuple(np.round(np.asarray(model.sigmas(), dtype=float), 12))
+
+
 class BuildContext:
     """Passed to `FactorType.build` and `Initializer.initialize`."""
 
@@ -122,6 +126,7 @@ class BuildContext:
         self.value_source: dict[str, str] = {}  # such a parameter's name -> the initializer that set it
         self.current_initializer = ""
         self.measurement_states = MeasurementStates(self)
+        self._scaled_sigmas: dict[str, set[tuple]] = {}  # label -> sigmas ctx.noise made for a scaled entry
         for name, setup in config.robots.items():
             if setup.states:
                 vt = vartype_named(setup.states["type"])
@@ -286,8 +291,13 @@ class BuildContext:
 
     # --- factors -----------------------------------------------------------------------------
     def noise(self, sigmas, spec: Spec | None = None) -> gtsam.noiseModel.Base:
-        """Gaussian noise with the robust kernel of the entry (`robust:`), if any."""
-        return with_kernel(gaussian(sigmas), spec.get("robust") if spec else None)
+        """Gaussian noise with the robust kernel of the entry (`robust:`), if any; the sigmas multiplied by the
+        entry's `noise_scale:`."""
+        scale = noise_scale(spec)
+        model = gaussian(np.asarray(sigmas, dtype=float) * scale if scale != 1.0 else sigmas)
+        if scale != 1.0:
+            self._scaled_sigmas.setdefault(spec.label, set()).add(_sigma_key(model))
+        return with_kernel(model, spec.get("robust") if spec else None)
 
     def add(self, factor: gtsam.NonlinearFactor, spec: Spec, time: float = STATIC_TIME) -> None:
         """Add a factor made by entry `spec`; `time` is when an incremental solver may add it
@@ -297,7 +307,17 @@ class BuildContext:
                                                  gtsam.noiseModel.Robust):
             raise PluginError(f"{spec.label}: factor type {spec.type} was given `robust:` but built a factor "
                               "without the kernel (plugin bug: build its noise with ctx.noise(sigmas, spec))")
+        if noise_scale(spec) != 1.0 and not self._noise_made_here(factor, spec):
+            raise PluginError(f"{spec.label}: factor type {spec.type} was given `noise_scale:` but built a factor "
+                              "whose noise ctx.noise did not make (plugin bug: build its noise with "
+                              "ctx.noise(sigmas, spec))")
         self.records.append(FactorRecord(factor, spec.label, time))
+
+    def _noise_made_here(self, factor: gtsam.NonlinearFactor, spec: Spec) -> bool:
+        model = getattr(factor, "noiseModel", lambda: None)()
+        if isinstance(model, gtsam.noiseModel.Robust):
+            model = model.noise()
+        return model is not None and _sigma_key(model) in self._scaled_sigmas.get(spec.label, ())
 
     def add_vectorized(self, residual: VectorizedResidual, keys, data: dict[str, Any], sigmas, spec: Spec,
                        times=STATIC_TIME) -> None:
@@ -315,17 +335,17 @@ class BuildContext:
             if len(v) != n:
                 raise PluginError(f"{spec.label}: {residual.name} data {name!r} has {len(v)} rows for {n} factors")
         per_instance = np.ndim(sigmas) == 2
-        sigma_rows = np.broadcast_to(np.asarray(sigmas, dtype=float), (n, residual.dim)).copy()
+        sigma_rows = np.broadcast_to(np.asarray(sigmas, dtype=float) * noise_scale(spec), (n, residual.dim)).copy()
         if not np.all(sigma_rows > 0):
             raise PluginError(f"{spec.label}: {residual.name} sigmas must be > 0")
         times = np.broadcast_to(np.asarray(times, dtype=float), (n,)).tolist()
-        first = self.noise(sigma_rows[0] if n else np.ones(residual.dim), spec)  # the entry's kernel comes with it
+        first = with_kernel(gaussian(sigma_rows[0] if n else np.ones(residual.dim)), spec.get("robust"))
         kernel = first.robust() if isinstance(first, gtsam.noiseModel.Robust) else None
         shared = None if per_instance else first
         group = VectorizedGroup(residual, keys, data, sigma_rows, kernel)
         instances = InstanceCache(residual, keys, data)
         for i in range(n):
-            noise = shared if shared is not None else self.noise(sigma_rows[i], spec)
+            noise = shared if shared is not None else with_kernel(gaussian(sigma_rows[i]), spec.get("robust"))
             self.records.append(FactorRecord(instances.factor(i, noise), spec.label, times[i], group, i))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:

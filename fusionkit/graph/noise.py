@@ -51,3 +51,9 @@ def with_kernel(model: gtsam.noiseModel.Base, robust: dict | None) -> gtsam.nois
         return model
     cls, default_k = KERNELS[robust["kernel"]]
     return gtsam.noiseModel.Robust.Create(cls.Create(float(robust.get("k", default_k))), model)
+
+
+def noise_scale(spec) -> float:
+    """The factor entry's `noise_scale:` as a number (absent: 1; `estimate` before its first estimate: 1)."""
+    scale = spec.get("noise_scale", 1.0) if spec is not None else 1.0
+    return 1.0 if scale == "estimate" else float(scale)

@@ -6,7 +6,9 @@ from its separator's, which its parent holds (running intersection):
     C_SS from the parent,  X = R^-1 S,  C_FF = R^-1 R^-T + X C_SS X^T,  C_FS = -X C_SS.
 
 One pass from the roots down, each clique's work cubic in its own size: time and memory linear in the
-number of cliques, where a dense QR of the whole Jacobian is cubic in the size of the problem.
+number of cliques, where a dense QR of the whole Jacobian is cubic in the size of the problem. The same
+pass gives every factor's joint covariance of its variables (they lie in one clique), which the noise-scale
+estimate needs (noise_scales.py).
 """
 
 from __future__ import annotations
@@ -22,13 +24,25 @@ from .marginals import frontal_count
 def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
                         ordering: str = "colamd") -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key, from the QR Bayes tree."""
+    clique_of, joint = clique_covariances(eliminate(graph.linearize(values), True, ordering), values)
+    out: dict[int, np.ndarray] = {}
+    for k in keys:
+        index, C = joint[clique_of[k]]
+        out[k] = C[index[k], index[k]].copy()
+    return out
+
+
+def clique_covariances(tree: gtsam.GaussianBayesTree, values: gtsam.Values
+                       ) -> tuple[dict[int, int], dict[int, tuple[dict[int, slice], np.ndarray]]]:
+    """(the clique each key is frontal in, each clique's (key -> rows, joint covariance of its frontal and
+    separator variables)); cliques are named by their first frontal key."""
     import scipy.linalg
-    tree = eliminate(graph.linearize(values), True, ordering)
     dims = values.zeroVectors()
-    cliques, parent_of = {}, {}
+    cliques, parent_of, clique_of = {}, {}, {}
     for key in values.keys():
         clique = tree[key]
         first = clique.conditional().firstFrontalKey()
+        clique_of[key] = first
         if first not in cliques:
             cliques[first] = clique
             parent_of[first] = None if clique.isRoot() else clique.parent().conditional().firstFrontalKey()
@@ -40,8 +54,7 @@ def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, valu
             c = parent_of[c]
         done.update(chain)
         order.extend(reversed(chain))
-    joint: dict[int, tuple[dict[int, slice], np.ndarray]] = {}  # clique -> (key -> rows, joint covariance)
-    out: dict[int, np.ndarray] = {}
+    joint: dict[int, tuple[dict[int, slice], np.ndarray]] = {}
     for c in order:
         cond = cliques[c].conditional()
         n = frontal_count(cond, dims)
@@ -64,7 +77,15 @@ def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, valu
         else:
             C = R_inv @ R_inv.T
         joint[c] = (index, C)
-        for k in frontal:
-            if k in keys:
-                out[k] = C[index[k], index[k]].copy()
-    return out
+    return clique_of, joint
+
+
+def joint_covariance(clique_of: dict[int, int], joint: dict, keys: list[int]) -> np.ndarray:
+    """The joint covariance of `keys` (in that order), all of which some clique holds: the one where the
+    first of them to be eliminated is frontal (a factor's keys always are, with the tree of its graph)."""
+    for k in keys:
+        index, C = joint[clique_of[k]]
+        if all(j in index for j in keys):
+            rows = np.concatenate([np.arange(index[j].start, index[j].stop) for j in keys])
+            return C[np.ix_(rows, rows)]
+    raise ValueError("no clique of the Bayes tree holds all these keys together")

@@ -25,6 +25,7 @@ class SolveResult:
     chi2_per_dof: float | None = None  # 2 cost / degrees of freedom; None without redundancy
     rejection: str | None = None  # why the chi-square gate refused the solution; None: accepted
     sigmas_scaled: bool = False  # covariances multiplied by sigma0^2 (solver.a_posteriori_sigmas)
+    noise_scales: dict[str, dict] | None = None  # `noise_scale: estimate` entries (solve/noise_scales.py)
 
     @property
     def sigma0(self) -> float | None:
@@ -38,6 +39,8 @@ class SolveResult:
                "chi2_per_dof": self.chi2_per_dof, "sigma0": self.sigma0, "sigmas_scaled_by_sigma0": self.sigmas_scaled}
         if self.rejection:
             out["rejection"] = self.rejection
+        if self.noise_scales:
+            out["noise_scales"] = self.noise_scales
         if self.step_latency is not None and len(self.step_latency):
             lat = self.step_latency * 1e3
             out["step_latency_ms"] = {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)),

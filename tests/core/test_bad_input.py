@@ -225,7 +225,7 @@ def test_unknown_factor_key_lists_the_accepted_keys(tmp_path, out, capsys):
     rewrite(config, "    sensor: marker\n", "    sensor: marker\n    sigmaa: 1\n")
     assert fails(capsys, run(config, out), out=out) == (
         f"{config}:{line_of(config, 'sigmaa')}: factors[1].sigmaa: unknown key 'sigmaa'; accepted keys: label, "
-        "robot, robust, sensor, sigma, stream, time_offset, tolerance, type")
+        "noise_scale, robot, robust, sensor, sigma, stream, time_offset, tolerance, type")
 
 
 def test_unknown_key_in_robot_description_lists_the_accepted_keys(ds, out, capsys):
