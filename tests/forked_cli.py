@@ -73,10 +73,10 @@ def _run_command(conn: socket.socket) -> None:
 
 
 def serve(socket_path: str) -> None:
-    import matplotlib.pyplot  # noqa: F401  (what `run` imports to plot)
-    import evo.core.metrics  # noqa: F401  (what `run` imports to evaluate against truth)
+    import importlib
+    for module in ("matplotlib.pyplot", "evo.core.metrics", "fusionkit.cli.main"):  # what `run` imports
+        importlib.import_module(module)
     from fusionkit.plugins import registry
-    import fusionkit.cli.main  # noqa: F401
     registry()
     signal.signal(signal.SIGCHLD, signal.SIG_IGN)  # children are reaped by the kernel
     listener = socket.socket(socket.AF_UNIX)
