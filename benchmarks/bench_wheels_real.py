@@ -184,7 +184,14 @@ def graph_noise_held_out(sessions, quick: bool) -> tuple[str, dict]:
         rows.append([label, *cells])
     head = ["wheel_sigma (m/sqrt(s))", "circ chi2/dof", "held out max e_d", "max final", "squares chi2/dof",
             "held out max e_d", "max final"]
-    return table(head, rows, "fusionkit graph, leave one run out: its wheel noise as stated a priori and lower"), raw
+    text = table(head, rows, "fusionkit graph, leave one run out: its wheel noise as stated a priori and lower")
+    for name, session in sessions.items():  # the scales the data give on all six runs
+        scales = graph_calibration(session, variants[-1][1])[2].solution.noise_scales
+        raw[("noise_scales", SHORT[name])] = scales
+        text += f"\nnoise scales estimated on all {SHORT[name]} runs: " + ", ".join(
+            f"{label.split(':')[1]} {fit['scale']:.3f} +- {fit['sigma']:.3f} (redundancy {fit['redundancy']:.0f}, "
+            f"{fit['rounds']} rounds)" for label, fit in scales.items())
+    return text, raw
 
 
 def run(quick: bool) -> dict:
