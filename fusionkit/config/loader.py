@@ -101,6 +101,9 @@ def _check_entries(doc: Document, specs: list[Spec], kind: str, reg, extra_keys:
         if "robust" in extra_keys and "robust" in spec.data and not cls.accepts_robust:
             raise spec.error("robust", f"factor type {spec.type} takes no robust kernel (its noise comes from its "
                              "model); remove `robust:` from this entry")
+        if "noise_scale" in extra_keys and "noise_scale" in spec.data and not cls.accepts_robust:
+            raise spec.error("noise_scale", f"factor type {spec.type} takes no noise scale (its noise comes from its "
+                             "model); remove `noise_scale:` from this entry")
         schema = _entry_schema(cls, extra_keys)
         validate_against(doc, schema, spec.data, spec.path)
         spec.data = with_defaults(schema, spec.data)

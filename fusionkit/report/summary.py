@@ -34,6 +34,9 @@ def summary_text(result: RunResult) -> str:
              + (" -- REJECTED by the chi-square gate" if s.rejection else "")]
     if s.sigmas_scaled:
         lines.append(f"  sigmas below are scaled by sigma0 = {s.sigma0:.3g} (solver.a_posteriori_sigmas)")
+    for label, fit in (s.noise_scales or {}).items():
+        lines.append(f"  noise scale of {label}: {fit['scale']:.4g} ± {fit['sigma']:.2g} (estimated; redundancy "
+                     f"{fit['redundancy']:.1f} of {fit['rows']} rows, {fit['rounds']} rounds)")
     stats = s.stats()
     if "step_latency_ms" in stats:
         lat = stats["step_latency_ms"]
