@@ -68,7 +68,7 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str]) -> dict[str, Ent
 
 class ScaleIteration:
     """The rounds' scales. The plain update log s += 0.5 log(chi2 / r) converges linearly and slowly when an
-    entry starts badly weighted (its redundancy then grows a little each round: 20 rounds measured for one
+    entry starts badly weighted (its redundancy then grows a little each round: 19 rounds measured for one
     three times too large a sigma, measured); each entry's step is stretched by the secant of its last two rounds
     (1 to `MAX_STRETCH` times the plain step)."""
 
