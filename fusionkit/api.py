@@ -32,7 +32,7 @@ from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, no
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.6"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.7"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -42,6 +42,8 @@ API_VERSION = "1.6"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.5: vectorized factors: VectorizedResidual, ctx.add_vectorized, vectorized_factor (one instance, for
 #      examples), lie (SE(3) for N poses at once)
 # 1.6: RobotModel.geometry (what `fusionkit view` draws of a robot) with the shapes Points and Lines
+# 1.7: `noise_scale:` on every factor entry (ctx.noise applies it); ctx.add(..., part=) for a factor whose
+#      noise is the plugin's own (neither the entry's kernel nor its scale applies)
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -286,38 +286,36 @@ def _solve_noise_scales(config: RunConfig, streams: dict[str, Stream], problem: 
                         progress) -> tuple[Problem, SolveResult]:
     """`noise_scale: estimate`: solve, estimate those entries' noise scales from the residuals and their
     redundancy (solve/noise_scales.py), rebuild the graph with them and solve again from the estimate, until
-    the scales settle; the last solve gives the covariances. Iterations and seconds count every solve."""
+    the scales settle; a last solve from there gives the covariances. Iterations and seconds count every
+    solve; the returned problem keeps the initializers' values as its initial ones (as _solve_refined's)."""
     iteration = noise_scales.ScaleIteration([spec.label for spec in config.factors
                                              if spec.get("noise_scale") == "estimate"])
     quiet = {**config.solver, "marginals": False}
     iterations = seconds = 0
+    start = problem.initial
     for rounds in range(1, noise_scales.MAX_ROUNDS + 1):
         _stage(progress, f"noise scales, round {rounds}: " + ", ".join(f"{k} {v:.4g}" for k, v in iteration.scales.items()))
-        solution = solve(problem, quiet, set(), progress)
+        problem.evaluator()  # built once, shared by the copy solved from `start`
+        solution = solve(dataclasses.replace(problem, initial=start), quiet, set(), progress)
         iterations, seconds = iterations + solution.iterations, seconds + solution.seconds
-        fits = noise_scales.entry_fits(problem, solution.values, set(iteration.scales))
+        start = solution.values
+        fits = noise_scales.entry_fits(problem, start, set(iteration.scales), config.solver)
         iteration.update(fits)
         if iteration.done:  # the scales of this solve fit the data
             break
-        problem = _rebuilt_with_scales(config, streams, iteration.scales, solution.values)
+        factors = [dataclasses.replace(spec, data={**spec.data, "noise_scale": iteration.scales[spec.label]})
+                   if spec.label in iteration.scales else spec for spec in config.factors]
+        problem = build_problem(dataclasses.replace(config, factors=factors), streams, progress)
     else:
         problem.notes.append(f"noise scales: chi-square / redundancy still off 1 after {noise_scales.MAX_ROUNDS} "
                              "rounds (by more than a tenth of its standard deviation); the last scales are used")
-    final = solve(problem, config.solver, marginal_keys, progress)
+    final = solve(dataclasses.replace(problem, initial=start), config.solver, marginal_keys, progress)
     final.iterations += iterations
     final.seconds += seconds
     if not iteration.done:
-        fits = noise_scales.entry_fits(problem, final.values, set(iteration.scales))
+        fits = noise_scales.entry_fits(problem, final.values, set(iteration.scales), config.solver)
     final.noise_scales = noise_scales.scale_report(iteration.scales, fits, rounds)
     return problem, final
-
-
-def _rebuilt_with_scales(config: RunConfig, streams: dict[str, Stream], scales: dict[str, float],
-                         initial: gtsam.Values) -> Problem:
-    """The graph built again with the entries' noise scales, starting from `initial`."""
-    factors = [dataclasses.replace(spec, data={**spec.data, "noise_scale": scales[spec.label]})
-               if spec.label in scales else spec for spec in config.factors]
-    return dataclasses.replace(build_problem(dataclasses.replace(config, factors=factors), streams), initial=initial)
 
 
 def estimate(config: RunConfig, progress: Progress | None = None, keep_rejected: bool = False) -> RunResult:

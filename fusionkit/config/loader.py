@@ -282,7 +282,7 @@ def _refined_factors(doc: Document, solver: dict, factors: list[Spec], objs: lis
         if label not in labels:
             raise doc.error(path + (label,), f"no factor entry has label {label!r}; labelled entries: "
                             f"{', '.join(sorted(labels)) or '(none: give one a label)'}")
-        for key in ("type", "label"):
+        for key in ("type", "label", "noise_scale"):
             if key in settings:
                 raise doc.error(path + (label, key), f"refine changes settings, not the entry's {key}")
     refined = []

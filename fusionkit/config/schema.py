@@ -14,7 +14,7 @@ POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 
 # a factor entry's `noise_scale:`: its sigmas multiplied by a number, or by one estimated from the data
 # (variance components, fusionkit/solve/noise_scales.py)
-NOISE_SCALE_SCHEMA = {"oneOf": [POSITIVE, {"const": "estimate"}]}
+NOISE_SCALE_SCHEMA = {"oneOf": [POSITIVE, {"enum": ["estimate"]}]}
 
 ROBUST_SCHEMA = {
     "type": "object",

@@ -65,6 +65,7 @@ class FactorRecord:
     time: float
     group: VectorizedGroup | None = None
     row: int = -1
+    part: str | None = None  # a named part of the entry with the plugin's own noise (`ctx.add(..., part=)`)
 
 
 @dataclass
@@ -295,23 +296,26 @@ class BuildContext:
         entry's `noise_scale:`."""
         scale = noise_scale(spec)
         model = gaussian(np.asarray(sigmas, dtype=float) * scale if scale != 1.0 else sigmas)
-        if scale != 1.0:
+        if spec is not None and "noise_scale" in spec.data:
             self._scaled_sigmas.setdefault(spec.label, set()).add(_sigma_key(model))
         return with_kernel(model, spec.get("robust") if spec else None)
 
-    def add(self, factor: gtsam.NonlinearFactor, spec: Spec, time: float = STATIC_TIME) -> None:
+    def add(self, factor: gtsam.NonlinearFactor, spec: Spec, time: float = STATIC_TIME, part: str | None = None) -> None:
         """Add a factor made by entry `spec`; `time` is when an incremental solver may add it
-        (the latest state it touches; static-only factors go first). An entry with `robust:` must
-        have built the factor's noise with `noise(sigmas, spec)`: a kernel silently dropped is refused."""
-        if spec.data.get("robust") and not isinstance(getattr(factor, "noiseModel", lambda: None)(),
-                                                 gtsam.noiseModel.Robust):
+        (the latest state it touches; static-only factors go first). An entry with `robust:` or a
+        `noise_scale:` must have built the factor's noise with `noise(sigmas, spec)`: a kernel or scale silently
+        dropped is refused. `part` names a factor whose noise is the plugin's own, not the entry's measurement
+        noise (e.g. a prior holding an auxiliary variable near zero): neither the entry's kernel nor its
+        scale applies, and an estimated scale does not count it (API 1.7)."""
+        if part is None and spec.data.get("robust") and not isinstance(getattr(factor, "noiseModel", lambda: None)(),
+                                                                       gtsam.noiseModel.Robust):
             raise PluginError(f"{spec.label}: factor type {spec.type} was given `robust:` but built a factor "
                               "without the kernel (plugin bug: build its noise with ctx.noise(sigmas, spec))")
-        if noise_scale(spec) != 1.0 and not self._noise_made_here(factor, spec):
+        if part is None and "noise_scale" in spec.data and not self._noise_made_here(factor, spec):
             raise PluginError(f"{spec.label}: factor type {spec.type} was given `noise_scale:` but built a factor "
                               "whose noise ctx.noise did not make (plugin bug: build its noise with "
-                              "ctx.noise(sigmas, spec))")
-        self.records.append(FactorRecord(factor, spec.label, time))
+                              "ctx.noise(sigmas, spec), or name a prior of its own with ctx.add(..., part=...))")
+        self.records.append(FactorRecord(factor, spec.label, time, part=part))
 
     def _noise_made_here(self, factor: gtsam.NonlinearFactor, spec: Spec) -> bool:
         model = getattr(factor, "noiseModel", lambda: None)()
@@ -324,7 +328,7 @@ class BuildContext:
         """Add N factors of one vectorized residual (fusionkit.graph.vectorized): `keys` (N, k) variable
         keys per instance in the residual's variable order, `data` {name: (N, ...)} measurements, `sigmas`
         (dim,) shared or (N, dim) per instance (residual units; the entry's `robust:` kernel is applied),
-        `times` () or (N,) as in `add`."""
+        `times` () or (N,) as in `add`; the sigmas are multiplied by the entry's `noise_scale:`."""
         keys = np.asarray(keys, dtype=np.int64)
         n = len(keys)
         if keys.shape != (n, len(residual.variables)):

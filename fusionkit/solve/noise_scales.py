@@ -19,11 +19,14 @@ import gtsam
 import numpy as np
 
 from ..graph.evaluator import in_group
+from ..errors import DataError
 from ..graph.vectorized import ValueReader
 from .covariance_recovery import clique_covariances, joint_covariance
+from .factorization import eliminate, resolved_ordering
 
 STOP = 0.1  # the rounds stop when every chi2 / redundancy is within STOP of its standard deviation of 1
 MAX_ROUNDS = 20
+REDUNDANCY_FLOOR = 1e-6  # rows' worth: an entry with less has no residual left to estimate its noise from
 
 
 @dataclass
@@ -40,17 +43,21 @@ class EntryFit:
         return self.chi2 / self.redundancy
 
 
-def entry_fits(problem, values: gtsam.Values, labels: set[str]) -> dict[str, EntryFit]:
-    """Chi-square and redundancy of the factors of each entry in `labels`, at `values` (an estimate)."""
+def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | None = None) -> dict[str, EntryFit]:
+    """Chi-square and redundancy of the factors of each entry in `labels`, at `values` (an estimate), the
+    Bayes tree eliminated as the `solver:` section asks (Cholesky or QR, ordering; default Cholesky, COLAMD).
+    An entry with no redundancy has no scale to estimate: DataError."""
     evaluator = problem.evaluator()
-    clique_of, joint = clique_covariances(evaluator.linearize(values).eliminateMultifrontal(), values)
+    qr, ordering = (solver["factorization"] == "qr", resolved_ordering(solver["ordering"], evaluator.largest_degree())) \
+        if solver else (False, "colamd")
+    clique_of, joint = clique_covariances(eliminate(evaluator.linearize(values), qr, ordering), values)
     reader = ValueReader(values)
     errors = evaluator.record_errors(values)
     group_factors: dict[int, list[gtsam.JacobianFactor]] = {}
     fits = {label: EntryFit() for label in labels}
     for i, record in enumerate(problem.records):
         fit = fits.get(record.label)
-        if fit is None:
+        if fit is None or record.part is not None:  # a part with the plugin's own noise is not scaled
             continue
         if in_group(record):
             if id(record.group) not in group_factors:
@@ -63,6 +70,11 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str]) -> dict[str, Ent
         fit.chi2 += 2.0 * errors[i]
         fit.rows += A.shape[0]
         fit.redundancy += A.shape[0] - float(np.einsum("ij,jk,ik->", A, covariance, A))
+    for label, fit in fits.items():
+        if fit.redundancy <= REDUNDANCY_FLOOR:
+            raise DataError(f"{label}: noise_scale: estimate: the entry's factors have redundancy "
+                            f"{fit.redundancy:.3g} in {fit.rows} rows (the estimate absorbs them all): its noise cannot "
+                            "be estimated from this data; give noise_scale a number")
     return fits
 
 

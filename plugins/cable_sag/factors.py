@@ -116,7 +116,8 @@ class SagCable(FactorType):
                     ctx.state_variable(robot_name, FORCE, VECTOR2, k), *pulleys, *offsets]
             ctx.add(sag_factor(robot, z_all[row], keys, noise), spec, ctx.state_time(robot_name, k))
             if tilt is not None:  # the measured orientation enters: the statics' own turn dR_k held near identity
-                ctx.add(gtsam.PriorFactorRot3(keys[1], gtsam.Rot3(), tilt), spec, ctx.state_time(robot_name, k))
+                ctx.add(gtsam.PriorFactorRot3(keys[1], gtsam.Rot3(), tilt), spec, ctx.state_time(robot_name, k),
+                        part="orientation prior")
 
     @classmethod
     def example(cls, rng):

@@ -162,8 +162,8 @@ def turn_slips(ctx, spec: Spec, ks: np.ndarray, stream) -> list[int]:
     for k, seed in zip(ks.tolist(), seeds.tolist()):
         key = ctx.state_variable(robot, TURN_SLIP, SCALAR, k, float(seed))
         t = ctx.state_time(robot, k)
-        ctx.add(gtsam.PriorFactorDouble(key, 0.0, core), spec, t)
-        ctx.add(gtsam.PriorFactorDouble(key, 0.0, floor), spec, t)
+        ctx.add(gtsam.PriorFactorDouble(key, 0.0, core), spec, t, part="turn-slip prior")
+        ctx.add(gtsam.PriorFactorDouble(key, 0.0, floor), spec, t, part="turn-slip prior")
         keys.append(key)
     return keys
 

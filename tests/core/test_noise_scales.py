@@ -11,7 +11,7 @@ import yaml
 
 import fusionkit
 from fusionkit.api import FactorType, gaussian, hookimpl
-from fusionkit.errors import ConfigError, PluginError
+from fusionkit.errors import ConfigError, DataError, PluginError
 from fusionkit.testing import FactorExample
 from fusionkit.simulate import write_dataset
 from fusionkit.solve.noise_scales import entry_fits
@@ -145,3 +145,43 @@ def test_the_summary_names_each_estimated_scale_with_its_sigma_and_redundancy(da
     text = summary_text(fusionkit.run(dataset, BOTH))
     assert "  noise scale of factors[1]:pose.absolute: 1.4" in text
     assert "(estimated; redundancy 23.3 of 60 rows" in text  # measured: 1.403 ± 0.21, 8 rounds
+
+
+def test_noise_scale_cannot_be_changed_by_solver_refine(dataset):
+    with pytest.raises(ConfigError, match=r"solver\.refine\.vo\.noise_scale: refine changes settings, not the "
+                                          r"entry's noise_scale"):
+        fusionkit.load_config(dataset, ["factors.0.label=vo", "solver.refine={vo: {noise_scale: estimate}}"])
+
+
+def test_the_run_keeps_the_initializers_values_as_its_initial_ones(dataset):
+    """The rounds start from each other's estimates; the problem reported keeps the initializers' values."""
+    plain, scaled = (_poses(fusionkit.run(dataset, extra).problem.initial) for extra in ([], BOTH))
+    assert len(plain) == 600 and plain.keys() == scaled.keys()
+    assert all(plain[k].equals(scaled[k], 1e-12) for k in plain)
+
+
+def _poses(values) -> dict:
+    return {k: values.atPose3(k) for k in values.keys() if values.exists(k) and _is_pose3(values, k)}
+
+
+def _is_pose3(values, key) -> bool:
+    try:
+        values.atPose3(key)
+        return True
+    except RuntimeError:
+        return False
+
+
+def test_an_entry_the_estimate_absorbs_entirely_has_no_scale_to_estimate(dataset, tmp_path):
+    """A parameter held fixed by its prior: the prior's one row has redundancy 0 (measured 1e-12 or less)."""
+    import shutil
+    folder = tmp_path / "ds"
+    shutil.copytree(dataset.parent, folder)
+    description = folder / "robots" / "cam.yaml"
+    robot = yaml.safe_load(description.read_text())
+    robot["parameters"]["vo_scale"] = {"type": "scalar", "value": 2.5, "fixed": True}
+    description.write_text(yaml.safe_dump(robot))
+    result = fusionkit.run(folder / "config.yaml")
+    with pytest.raises(DataError, match=r"fixed:cam/vo_scale: noise_scale: estimate: the entry's factors have "
+                                        r"redundancy .* in 1 rows .*give noise_scale a number"):
+        entry_fits(result.problem, result.solution.values, {"fixed:cam/vo_scale"})
