@@ -10,6 +10,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..pipeline import RunResult
+from ..solve.noise_scales import scale_text
 from .summary import format_value
 
 STYLE = """body{font-family:system-ui,sans-serif;margin:2em auto;max-width:70em;color:#222}
@@ -33,6 +34,8 @@ def _solver(result: RunResult) -> str:
             ["solve time", f"{s.seconds:.3f} s"]]
     if s.rejection:
         rows.append(["status", f"<span class=bad>REJECTED by the chi-square gate</span>: {escape(str(s.rejection))}"])
+    for label, fit in (s.noise_scales or {}).items():
+        rows.append([f"noise scale of {escape(label)}", escape(scale_text(fit))])
     latency = s.stats().get("step_latency_ms")
     if latency:
         rows.append(["per-step latency", f"p50 {latency['p50']:.3f} ms, p99 {latency['p99']:.3f} ms"])

@@ -7,6 +7,7 @@ import numpy as np
 from ..pipeline import RunResult
 from ..graph.variables import COMPONENTS
 from ..robots.calibration_file import SIGMA_AXES
+from ..solve.noise_scales import scale_text
 
 
 def format_value(values, sigma, kind: str = "") -> str:
@@ -35,8 +36,7 @@ def summary_text(result: RunResult) -> str:
     if s.sigmas_scaled:
         lines.append(f"  sigmas below are scaled by sigma0 = {s.sigma0:.3g} (solver.a_posteriori_sigmas)")
     for label, fit in (s.noise_scales or {}).items():
-        lines.append(f"  noise scale of {label}: {fit['scale']:.4g} ± {fit['sigma']:.2g} (estimated; redundancy "
-                     f"{fit['redundancy']:.1f} of {fit['rows']} rows, {fit['rounds']} rounds)")
+        lines.append(f"  noise scale of {label}: {scale_text(fit)}")
     stats = s.stats()
     if "step_latency_ms" in stats:
         lat = stats["step_latency_ms"]

@@ -116,3 +116,9 @@ def scale_report(scales: dict[str, float], fits: dict[str, EntryFit], rounds: in
     return {label: {"scale": scale, "sigma": scale / float(np.sqrt(2.0 * fits[label].redundancy)),
                     "redundancy": fits[label].redundancy, "rows": fits[label].rows, "rounds": rounds}
             for label, scale in scales.items()}
+
+
+def scale_text(fit: dict) -> str:
+    """One entry of `scale_report` as the run summary and report.html show it."""
+    return (f"{fit['scale']:.4g} ± {fit['sigma']:.2g} (estimated; redundancy {fit['redundancy']:.1f} of {fit['rows']} "
+            f"rows, {fit['rounds']} rounds)")

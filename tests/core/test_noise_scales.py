@@ -140,11 +140,15 @@ def test_a_factor_type_whose_noise_comes_from_its_model_refuses_a_scale_at_load(
         fusionkit.load_config(config, ["factors.1.noise_scale=2"])
 
 
-def test_the_summary_names_each_estimated_scale_with_its_sigma_and_redundancy(dataset):
+def test_the_summary_and_the_html_report_name_each_estimated_scale_with_its_sigma_and_redundancy(dataset):
+    from fusionkit.report.html import report_html
     from fusionkit.report.summary import summary_text
-    text = summary_text(fusionkit.run(dataset, BOTH))
+    result = fusionkit.run(dataset, BOTH)
+    text = summary_text(result)
     assert "  noise scale of factors[1]:pose.absolute: 1.4" in text
     assert "(estimated; redundancy 23.3 of 60 rows" in text  # measured: 1.403 ± 0.21, 8 rounds
+    assert "<td>noise scale of factors[1]:pose.absolute</td><td>1.403 ± 0.21 (estimated; redundancy 23.3" in \
+        report_html(result, None)
 
 
 def test_noise_scale_cannot_be_changed_by_solver_refine(dataset):
