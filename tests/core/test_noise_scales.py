@@ -28,12 +28,24 @@ def dataset(tmp_path_factory):
     return folder / "config.yaml"
 
 
+@pytest.fixture(scope="module")
+def plain(dataset):
+    """The dataset's run as configured."""
+    return fusionkit.run(dataset)
+
+
+@pytest.fixture(scope="module")
+def estimated(dataset):
+    """The dataset's run with both entries' noise scales estimated."""
+    return fusionkit.run(dataset, BOTH)
+
+
 def _scales(result) -> dict[str, dict]:
     return {label.split(":")[1]: fit for label, fit in result.solution.noise_scales.items()}
 
 
-def test_redundancies_of_all_factors_add_up_to_rows_minus_unknowns(dataset):
-    result = fusionkit.run(dataset)
+def test_redundancies_of_all_factors_add_up_to_rows_minus_unknowns(plain):
+    result = plain
     problem, values = result.problem, result.solution.values
     fits = entry_fits(problem, values, {r.label for r in problem.records})
     unknowns = sum(values.zeroVectors().at(k).shape[0] for k in values.keys())
@@ -45,19 +57,19 @@ def test_redundancies_of_all_factors_add_up_to_rows_minus_unknowns(dataset):
     assert sum(f.chi2 for f in fits.values()) == pytest.approx(2 * result.solution.final_error, rel=1e-9)
 
 
-def test_noise_as_simulated_gets_scales_within_3_sigma_of_1_and_chi2_per_dof_1(dataset):
+def test_noise_as_simulated_gets_scales_within_3_sigma_of_1_and_chi2_per_dof_1(estimated):
     """A self-consistency check: the data were simulated with the noise the config states."""
-    result = fusionkit.run(dataset, BOTH)
+    result = estimated
     for name, fit in _scales(result).items():
         assert abs(fit["scale"] - 1.0) < 3 * fit["sigma"], (name, fit)  # measured: 0.93 +- 0.12, 1.40 +- 0.21
         assert fit["rounds"] <= 10
     assert result.solution.chi2_per_dof == pytest.approx(1.0, abs=0.05)
 
 
-def test_vo_sigmas_stated_3x_too_large_are_scaled_to_a_third_of_the_right_statement(dataset):
+def test_vo_sigmas_stated_3x_too_large_are_scaled_to_a_third_of_the_right_statement(dataset, estimated):
     """Mis-specified noise: the estimate does not depend on how wrong the statement was -- the estimated
     sigmas (stated times scale) are those estimated from the right statement, to 3 %."""
-    right = _scales(fusionkit.run(dataset, BOTH))
+    right = _scales(estimated)
     wrong_result = fusionkit.run(dataset, BOTH + VO_STATED_3X)
     wrong = _scales(wrong_result)
     assert 3 * wrong["pose.scaled_relative"]["scale"] == pytest.approx(right["pose.scaled_relative"]["scale"], rel=0.03)
@@ -68,9 +80,8 @@ def test_vo_sigmas_stated_3x_too_large_are_scaled_to_a_third_of_the_right_statem
     assert wrong_result.solution.chi2_per_dof == pytest.approx(1.0, abs=0.05)
 
 
-def test_a_number_multiplies_the_entrys_sigmas(dataset):
+def test_a_number_multiplies_the_entrys_sigmas(dataset, plain):
     """noise_scale: 3 on sigmas a third of the stated ones is the stated noise: same estimate and cost."""
-    plain = fusionkit.run(dataset)
     scaled = fusionkit.run(dataset, ["factors.0.sigma.rotation=0.0006666666666666666",
                                      "factors.0.sigma.translation=0.0005333333333333333", "factors.0.noise_scale=3"])
     assert scaled.solution.final_error == pytest.approx(plain.solution.final_error, rel=1e-6)
@@ -140,10 +151,10 @@ def test_a_factor_type_whose_noise_comes_from_its_model_refuses_a_scale_at_load(
         fusionkit.load_config(config, ["factors.1.noise_scale=2"])
 
 
-def test_the_summary_and_the_html_report_name_each_estimated_scale_with_its_sigma_and_redundancy(dataset):
+def test_the_summary_and_the_html_report_name_each_estimated_scale_with_its_sigma_and_redundancy(estimated):
     from fusionkit.report.html import report_html
     from fusionkit.report.summary import summary_text
-    result = fusionkit.run(dataset, BOTH)
+    result = estimated
     text = summary_text(result)
     assert "  noise scale of factors[1]:pose.absolute: 1.4" in text
     assert "(estimated; redundancy 23.3 of 60 rows" in text  # measured: 1.403 ± 0.21, 8 rounds
@@ -157,11 +168,11 @@ def test_noise_scale_cannot_be_changed_by_solver_refine(dataset):
         fusionkit.load_config(dataset, ["factors.0.label=vo", "solver.refine={vo: {noise_scale: estimate}}"])
 
 
-def test_the_run_keeps_the_initializers_values_as_its_initial_ones(dataset):
+def test_the_run_keeps_the_initializers_values_as_its_initial_ones(plain, estimated):
     """The rounds start from each other's estimates; the problem reported keeps the initializers' values."""
-    plain, scaled = (_poses(fusionkit.run(dataset, extra).problem.initial) for extra in ([], BOTH))
-    assert len(plain) == 600 and plain.keys() == scaled.keys()
-    assert all(plain[k].equals(scaled[k], 1e-12) for k in plain)
+    before, after = _poses(plain.problem.initial), _poses(estimated.problem.initial)
+    assert len(before) == 600 and before.keys() == after.keys()
+    assert all(before[k].equals(after[k], 1e-12) for k in before)
 
 
 def _poses(values) -> dict:
