@@ -343,14 +343,16 @@ class BuildContext:
         if not np.all(sigma_rows > 0):
             raise PluginError(f"{spec.label}: {residual.name} sigmas must be > 0")
         times = np.broadcast_to(np.asarray(times, dtype=float), (n,)).tolist()
-        first = with_kernel(gaussian(sigma_rows[0] if n else np.ones(residual.dim)), spec.get("robust"))
+        def noise(sigmas):  # the rows are scaled already: the entry's kernel only
+            return with_kernel(gaussian(sigmas), spec.get("robust"))
+        first = noise(sigma_rows[0] if n else np.ones(residual.dim))
         kernel = first.robust() if isinstance(first, gtsam.noiseModel.Robust) else None
         shared = None if per_instance else first
         group = VectorizedGroup(residual, keys, data, sigma_rows, kernel)
         instances = InstanceCache(residual, keys, data)
         for i in range(n):
-            noise = shared if shared is not None else with_kernel(gaussian(sigma_rows[i]), spec.get("robust"))
-            self.records.append(FactorRecord(instances.factor(i, noise), spec.label, times[i], group, i))
+            model = shared if shared is not None else noise(sigma_rows[i])
+            self.records.append(FactorRecord(instances.factor(i, model), spec.label, times[i], group, i))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))

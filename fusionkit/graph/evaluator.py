@@ -56,6 +56,10 @@ class GraphEvaluator:
                 linear.push_back(factor)
         return linear
 
+    def linear_order(self) -> list[int]:
+        """The record index of each factor of `linearize`'s graph, in its order."""
+        return self.plain_rows + [int(i) for _, indices in self.groups for i in indices]
+
     def error(self, values: gtsam.Values) -> float:
         reader = ValueReader(values)
         return float(self.plain.error(values) + sum(float(np.sum(g.errors(reader))) for g, _ in self.groups))

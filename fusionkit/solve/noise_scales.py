@@ -5,8 +5,8 @@ E[v_g^T v_g] = r_g, its redundancy: r_g = m_g - tr(A_g Sigma A_g^T), with A_g th
 rows and Sigma the posterior covariance of the variables (the redundancies of all factors add up to
 rows - unknowns). If the entry's sigmas are off by a factor s, v_g^T v_g / r_g estimates s^2; each round
 multiplies the sigmas by sqrt(v_g^T v_g / r_g) (stretched, see ScaleIteration) and solves again from the
-last estimate, until every v_g^T v_g / r_g is within a tenth of its standard deviation sqrt(2 / r_g) of 1 (Foerstner 1979; Koch 1999, Parameter Estimation and Hypothesis Testing in
-Linear Models, sec. 3.6). The scale's standard deviation is s / sqrt(2 r_g) (chi-square with r_g degrees of
+last estimate, until every v_g^T v_g / r_g is within a tenth of its standard deviation sqrt(2 / r_g) of 1
+(Foerstner 1979; Koch 1999, Parameter Estimation and Hypothesis Testing in Linear Models, sec. 3.6). The scale's standard deviation is s / sqrt(2 r_g) (chi-square with r_g degrees of
 freedom). Each factor's share tr(A_f Sigma_f A_f^T) needs only the joint covariance of its own variables
 (from one Bayes tree of the whole graph at the estimate).
 """
@@ -18,9 +18,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from ..graph.evaluator import in_group
 from ..errors import DataError
-from ..graph.vectorized import ValueReader
 from .covariance_recovery import clique_covariances, joint_covariance
 from .factorization import eliminate, resolved_ordering
 
@@ -50,23 +48,18 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
     evaluator = problem.evaluator()
     qr, ordering = (solver["factorization"] == "qr", resolved_ordering(solver["ordering"], evaluator.largest_degree())) \
         if solver else (False, "colamd")
-    clique_of, joint = clique_covariances(eliminate(evaluator.linearize(values), qr, ordering), values)
-    reader = ValueReader(values)
+    linear = evaluator.linearize(values)
+    clique_of, joint = clique_covariances(eliminate(linear, qr, ordering), values)
+    of_record = dict(zip(evaluator.linear_order(), range(linear.size())))  # each record's linear factor
     errors = evaluator.record_errors(values)
-    group_factors: dict[int, list[gtsam.JacobianFactor]] = {}
     fits = {label: EntryFit() for label in labels}
     for i, record in enumerate(problem.records):
         fit = fits.get(record.label)
         if fit is None or record.part is not None:  # a part with the plugin's own noise is not scaled
             continue
-        if in_group(record):
-            if id(record.group) not in group_factors:
-                group_factors[id(record.group)] = record.group.linear_factors(reader)
-            linear = group_factors[id(record.group)][record.row]
-        else:
-            linear = record.factor.linearize(values)
-        A = linear.jacobian()[0]  # whitened
-        covariance = joint_covariance(clique_of, joint, list(linear.keys()))
+        factor = linear.at(of_record[i])
+        A = factor.jacobian()[0]  # whitened
+        covariance = joint_covariance(clique_of, joint, list(factor.keys()))
         fit.chi2 += 2.0 * errors[i]
         fit.rows += A.shape[0]
         fit.redundancy += A.shape[0] - float(np.einsum("ij,jk,ik->", A, covariance, A))
@@ -81,7 +74,7 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
 class ScaleIteration:
     """The rounds' scales. The plain update log s += 0.5 log(chi2 / r) converges linearly and slowly when an
     entry starts badly weighted (its redundancy then grows a little each round: 19 rounds measured for one
-    three times too large a sigma, measured); each entry's step is stretched by the secant of its last two rounds
+    three times too large a sigma); each entry's step is stretched by the secant of its last two rounds
     (1 to `MAX_STRETCH` times the plain step)."""
 
     MAX_STRETCH = 4.0
