@@ -9,7 +9,7 @@ version adds names, a major one changes or removes them. docs/plugin_guide.md do
 
 from __future__ import annotations
 
-from . import hookimpl, lie
+from . import hookimpl, lie, se2
 from .components import (CheckScope, Command, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
                          Spec)
 from .data.files import read_csv_stream
@@ -32,7 +32,7 @@ from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, no
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.7"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.8"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -44,6 +44,7 @@ API_VERSION = "1.7"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.6: RobotModel.geometry (what `fusionkit view` draws of a robot) with the shapes Points and Lines
 # 1.7: `noise_scale:` on every factor entry (ctx.noise applies it); ctx.add(..., part=) for a factor whose
 #      noise is the plugin's own (neither the entry's kernel nor its scale applies)
+# 1.8: se2 (SE(2) for N planar poses at once, as lie for SE(3))
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -68,8 +69,8 @@ __all__ = [
     # simulator building blocks and the factor contract
     "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",
     "CLOCK_SCHEMA", "clock_times",
-    # factors evaluated many at a time (ctx.add_vectorized) and the SE(3) arrays they are written with
-    "VectorizedResidual", "vectorized_factor", "lie",
+    # factors evaluated many at a time (ctx.add_vectorized) and the SE(3) and SE(2) arrays they are written with
+    "VectorizedResidual", "vectorized_factor", "lie", "se2",
     # what a robot model draws of itself (RobotModel.geometry)
     "Points", "Lines",
 ]

@@ -24,7 +24,7 @@ from typing import Any, Callable
 import gtsam
 import numpy as np
 
-from .. import lie
+from .. import lie, se2
 from ..errors import SolverError
 from .variables import VarType
 
@@ -90,20 +90,8 @@ def retract_arrays(vartype: VarType, x: np.ndarray, d: np.ndarray) -> np.ndarray
     if name == "rot3":
         return x @ lie.exp(np.concatenate([d, np.zeros_like(d)], axis=-1))[..., :3, :3]
     if name == "pose2":
-        return x + _se2_increment(x[..., 2], d)
+        return se2.compose(x, se2.exp(d))
     return x + (d[..., 0] if x.ndim == 1 else d)
-
-
-def _se2_increment(theta: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Pose2 (x, y, theta) Exp(d) - (x, y, theta), d = [vx, vy, w] (GTSAM's Pose2 Expmap)."""
-    vx, vy, w = d[..., 0], d[..., 1], d[..., 2]
-    small = np.abs(w) < 1e-9
-    ws = np.where(small, 1.0, w)
-    s, c = np.sin(w), np.cos(w)
-    lx = np.where(small, vx - 0.5 * w * vy, (vx * s - vy * (1 - c)) / ws)
-    ly = np.where(small, vy + 0.5 * w * vx, (vx * (1 - c) + vy * s) / ws)
-    ct, st = np.cos(theta), np.sin(theta)
-    return np.stack([ct * lx - st * ly, st * lx + ct * ly, w], axis=-1)
 
 
 # --- the residual ----------------------------------------------------------------------------------

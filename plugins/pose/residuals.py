@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import POSE2, POSE3, SCALAR, VectorizedResidual, lie
+from fusionkit.api import POSE2, POSE3, SCALAR, VectorizedResidual, lie, se2
 
 
 def scaled_between(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
@@ -36,38 +36,26 @@ def scaled_between(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: 
 SCALED_BETWEEN = VectorizedResidual("pose.scaled_relative", (POSE3, POSE3, SCALAR), 6, scaled_between)
 
 
-def _se2_between_log(xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
-    """Log(xa^-1 xb) for N Pose2 [x, y, theta] pairs: GTSAM's Pose2 Logmap [vx, vy, w] of the relative pose."""
-    ca, sa = np.cos(xa[:, 2]), np.sin(xa[:, 2])
-    dx, dy = xb[:, 0] - xa[:, 0], xb[:, 1] - xa[:, 1]
-    tx, ty = ca * dx + sa * dy, -sa * dx + ca * dy
-    w = np.arctan2(np.sin(xb[:, 2] - xa[:, 2]), np.cos(xb[:, 2] - xa[:, 2]))
-    small = np.abs(w) < 1e-4
-    h = 0.5 * np.where(small, 1.0, w)
-    half = np.where(small, 1 - w ** 2 / 12 - w ** 4 / 720, h * np.cos(h) / np.sin(h))  # (w/2) cot(w/2)
-    return np.column_stack([half * tx + 0.5 * w * ty, -0.5 * w * tx + half * ty, w])
-
-
 def constant_velocity(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
     """Constant body-frame twist across three states (N at once): e = Log(X0^-1 X1)/dt1 - Log(X1^-1 X2)/dt2,
-    data dt1, dt2 (N,) in s. Pose3 with analytic Jacobians (B = Xa^-1 Xb, d Log(B) / d Xa = -Jr^-1 Ad(B^-1),
-    d / d Xb = Jr^-1); Pose2 residuals only (its residual object takes numerical Jacobians)."""
+    data dt1, dt2 (N,) in s; Pose3 (N, 4, 4) or Pose2 (N, 3). With B = Xa^-1 Xb, d Log(B) / d Xa = -Jr^-1 Ad(B^-1)
+    and d / d Xb = Jr^-1."""
     x0, x1, x2 = x
     dt1, dt2 = data["dt1"][:, None], data["dt2"][:, None]
     if x0.ndim == 2:
-        return _se2_between_log(x0, x1) / dt1 - _se2_between_log(x1, x2) / dt2
-    b1, b2 = lie.inverse(x0) @ x1, lie.inverse(x1) @ x2
-    xi1, xi2 = lie.log(b1), lie.log(b2)
+        group, b1, b2 = se2, se2.between(x0, x1), se2.between(x1, x2)
+    else:
+        group, b1, b2 = lie, lie.inverse(x0) @ x1, lie.inverse(x1) @ x2
+    xi1, xi2 = group.log(b1), group.log(b2)
     e = xi1 / dt1 - xi2 / dt2
     if not jacobians:
         return e
-    j1, j2 = lie.jr_inv(xi1) / dt1[:, :, None], lie.jr_inv(xi2) / dt2[:, :, None]
-    return e, [-j1 @ lie.adjoint(lie.inverse(b1)), j1 + j2 @ lie.adjoint(lie.inverse(b2)), -j2]
+    j1, j2 = group.jr_inv(xi1) / dt1[:, :, None], group.jr_inv(xi2) / dt2[:, :, None]
+    return e, [-j1 @ group.adjoint(group.inverse(b1)), j1 + j2 @ group.adjoint(group.inverse(b2)), -j2]
 
 
-CONSTANT_VELOCITY = {False: VectorizedResidual("motion.constant_velocity", (POSE3, POSE3, POSE3), 6, constant_velocity),
-                     True: VectorizedResidual("motion.constant_velocity", (POSE2, POSE2, POSE2), 3, constant_velocity,
-                                              jacobians="numerical")}  # by planar
+CONSTANT_VELOCITY = {planar: VectorizedResidual("motion.constant_velocity", (t, t, t), t.dim, constant_velocity)
+                     for planar, t in ((False, POSE3), (True, POSE2))}
 
 
 def co_registrations(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):

@@ -358,23 +358,27 @@ class Nonholonomic(FactorType):
 
 # --- wheels.preintegrated ---------------------------------------------------------------------------
 
-def _preintegrated_error(delta: gtsam.Pose2, jacobian: np.ndarray, nominal: np.ndarray, whiten: np.ndarray,
-                         this, values, H):
-    keys = this.keys()
-    theta = np.array([values.atDouble(keys[2]), values.atDouble(keys[3]), values.atDouble(keys[4])])
-    e, J = preintegrated_residual(values.atPose2(keys[0]), values.atPose2(keys[1]), theta, delta, jacobian, nominal,
-                                  whiten, H is not None)
+def _preintegrated_error(keys: tuple, delta: tuple, jacobian: tuple, nominal: tuple, whiten: tuple, this, values, H):
+    pi, pj = values.atPose2(keys[0]), values.atPose2(keys[1])
+    theta = (values.atDouble(keys[2]), values.atDouble(keys[3]), values.atDouble(keys[4]))
+    e, J = preintegrated_residual((pi.x(), pi.y(), pi.theta()), (pj.x(), pj.y(), pj.theta()), theta, delta, jacobian,
+                                  nominal, whiten, H is not None)
     if H is not None:
-        for i, block in enumerate(J):
-            H[i] = block
+        H[0], H[1], H[2], H[3], H[4] = J
     return e
+
+
+def _as_tuples(a) -> tuple:
+    """An array as (nested) tuples of floats: preintegrated_residual's scalar arithmetic."""
+    a = np.asarray(a, float)
+    return tuple(map(tuple, a.tolist())) if a.ndim == 2 else tuple(a.tolist())
 
 
 def preintegrated_factor(keys: list[int], delta, jacobian, nominal, covariance, noise) -> gtsam.CustomFactor:
     """Keys: pose i, pose j, r_L, r_R, A. The residual is whitened by the window's covariance (its unit: sigmas)."""
     whiten = np.linalg.inv(np.linalg.cholesky(covariance))
-    return gtsam.CustomFactor(noise, keys, partial(_preintegrated_error, gtsam.Pose2(*delta), np.asarray(jacobian),
-                                                   np.asarray(nominal, float), whiten))
+    data = (_as_tuples(a) for a in (delta, jacobian, nominal, whiten))
+    return gtsam.CustomFactor(noise, keys, partial(_preintegrated_error, tuple(keys), *data))
 
 
 def sample_windows(stream_t: np.ndarray, state_t: np.ndarray, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -20,10 +20,12 @@ preintegration does for its biases.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-import gtsam
 import numpy as np
+
+from fusionkit.api import se2
 
 
 @dataclass(frozen=True)
@@ -43,32 +45,6 @@ def _chord_factor(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     hs = np.where(small, 1.0, h)
     dc = np.where(small, 0.5 * (-h / 3.0 + h ** 3 / 30.0), 0.5 * (hs * np.cos(hs) - np.sin(hs)) / hs ** 2)
     return np.sinc(h / np.pi), dc
-
-
-def _adjoints(x: np.ndarray, y: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) Pose2 adjoint maps [[c, -s, y], [s, c, -x], [0, 0, 1]]."""
-    c, s = np.cos(psi), np.sin(psi)
-    out = np.zeros((len(psi), 3, 3))
-    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = c, -s, y
-    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = s, c, -x
-    out[:, 2, 2] = 1.0
-    return out
-
-
-def _right_jacobians(d: np.ndarray, turn: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) right Jacobians of Pose2.Expmap at (d, 0, turn): Exp(u + n) = Exp(u) Exp(Jr n) to first order."""
-    small = np.abs(turn) < 1e-4
-    a = np.where(small, 1.0, turn)
-    sa, ca = np.sin(a), np.cos(a)
-    f = np.where(small, 1.0 - turn ** 2 / 6.0, sa / a)                         # sin(a) / a
-    g = np.where(small, turn / 2.0 - turn ** 3 / 24.0, (1.0 - ca) / a)         # (1 - cos(a)) / a
-    k = np.where(small, turn / 6.0 - turn ** 3 / 120.0, (a - sa) / a ** 2)     # (a - sin(a)) / a^2
-    m = np.where(small, 0.5 - turn ** 2 / 24.0, (1.0 - ca) / a ** 2)           # (1 - cos(a)) / a^2
-    out = np.zeros((len(d), 3, 3))
-    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = f, g, d * k
-    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = -g, f, d * m
-    out[:, 2, 2] = 1.0
-    return out
 
 
 def preintegrate(window: np.ndarray, left: np.ndarray, right: np.ndarray, dt: np.ndarray, nominal,
@@ -102,23 +78,77 @@ def preintegrate(window: np.ndarray, left: np.ndarray, right: np.ndarray, dt: np
     # noise of each sample's arc (d, sideways, delta): wheel travels n_R, n_L (sigma^2 dt each), slip
     q = np.column_stack([0.5 * sigma ** 2 * dt, lateral_sigma ** 2 * dt, 2.0 * sigma ** 2 * dt / axle ** 2])
     after = before(step) + step  # the pose after each sample, in the window's start frame
-    g = _adjoints(after[:, 0], after[:, 1], psi + turn) @ _right_jacobians(d, turn)
+    zeros = np.zeros_like(d)
+    g = se2.adjoint(np.column_stack([after, psi + turn])) @ se2.jr(np.column_stack([d, zeros, turn]))
     summed = np.add.reduceat((g * q[:, None, :]) @ np.transpose(g, (0, 2, 1)), starts)
-    end_inv = _adjoints(-(rot_t[:, 0] * p).sum(1), -(rot_t[:, 1] * p).sum(1), -heading)
+    end_inv = se2.adjoint(se2.inverse(np.column_stack([p, heading])))
     covariance = end_inv @ summed @ np.transpose(end_inv, (0, 2, 1))
     return Windows(np.array([r_l, r_r, axle]), np.column_stack([p, heading]), jacobian, covariance)
 
 
-def preintegrated_residual(xi: gtsam.Pose2, xj: gtsam.Pose2, theta: np.ndarray, delta: gtsam.Pose2,
-                           jacobian: np.ndarray, nominal: np.ndarray, whiten: np.ndarray, jacobians: bool = False):
-    """Whitened e = W Log((delta Exp(J (theta - theta0)))^-1 xi^-1 xj) (W: the inverse Cholesky factor of
-    the window's covariance). With `jacobians`: (e, [d/dxi, d/dxj, d/dr_L, d/dr_R, d/dA])."""
+def _coefficients(w: float) -> tuple[float, float, float, float]:
+    """(sin w / w, (1 - cos w) / w, (w - sin w) / w^2, (1 - cos w) / w^2), with series below se2.SMALL."""
+    if abs(w) < se2.SMALL:
+        w2 = w * w
+        w4 = w2 * w2
+        return (1.0 - w2 / 6.0 + w4 / 120.0, w * (0.5 - w2 / 24.0 + w4 / 720.0), w * (1.0 / 6.0 - w2 / 120.0 + w4 / 5040.0),
+                0.5 - w2 / 24.0 + w4 / 720.0)
+    s, c = math.sin(w), math.cos(w)
+    return s / w, (1.0 - c) / w, (w - s) / (w * w), (1.0 - c) / (w * w)
+
+
+def _between(a, b) -> tuple[float, float, float]:
+    """a^-1 b of Pose2 (x, y, theta) tuples."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]
+
+
+def _adjoint_inverse(p) -> tuple:
+    """Ad(p^-1) of a Pose2 (x, y, theta): [[c, s, x s - y c], [-s, c, x c + y s], [0, 0, 1]]."""
+    c, s = math.cos(p[2]), math.sin(p[2])
+    return (c, s, p[0] * s - p[1] * c), (-s, c, p[0] * c + p[1] * s), (0.0, 0.0, 1.0)
+
+
+def _product(a, b) -> tuple:
+    """a b of 3x3 matrices as row tuples."""
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a
+    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = b
+    return ((a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22),
+            (a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22),
+            (a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22))
+
+
+def preintegrated_residual(xi, xj, theta, delta, jacobian, nominal, whiten, jacobians: bool = False):
+    """Whitened e = W Log(M^-1 xi^-1 xj), M = Delta Exp(u), u = J (theta - theta0) (W: the inverse Cholesky factor
+    of the window's covariance; e in sigmas), for one window: poses xi, xj and delta as (x, y, theta), theta and
+    theta0 = (r_L, r_R, A), J and W 3x3 as row tuples. With `jacobians`: (e, [d/dxi, d/dxj, d/dr_L, d/dr_R, d/dA]);
+    with B = xi^-1 xj, E = M^-1 B: de/dxj = W Jr^-1(Log E), de/dxi = -W Jr^-1 Ad(B^-1), de/dtheta = -W Jr^-1
+    Ad(E^-1) Jr(u) J. Scalar arithmetic: GTSAM's incremental solvers call the factor one at a time, where numpy's
+    per-call overhead would dominate."""
+    d0, d1, d2 = theta[0] - nominal[0], theta[1] - nominal[1], theta[2] - nominal[2]
+    (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = jacobian
+    u0, u1, u2 = j00 * d0 + j01 * d1 + j02 * d2, j10 * d0 + j11 * d1 + j12 * d2, j20 * d0 + j21 * d1 + j22 * d2
+    f, g, k, m = _coefficients(u2)
+    c, s = math.cos(delta[2]), math.sin(delta[2])
+    ex, ey = f * u0 - g * u1, g * u0 + f * u1  # Exp(u)'s translation
+    moved = (delta[0] + c * ex - s * ey, delta[1] + s * ex + c * ey, delta[2] + u2)
+    b = _between(xi, xj)
+    error = _between(moved, b)
+    w = math.atan2(math.sin(error[2]), math.cos(error[2]))
+    ef, eg, ek, em = _coefficients(w)
+    n = ef * ef + eg * eg
+    log = ((ef * error[0] + eg * error[1]) / n, (-eg * error[0] + ef * error[1]) / n, w)
+    e = np.array([w0 * log[0] + w1 * log[1] + w2 * log[2] for w0, w1, w2 in whiten])
     if not jacobians:
-        moved = delta.compose(gtsam.Pose2.Expmap(jacobian @ (theta - nominal)))
-        return whiten @ gtsam.Pose2.Logmap(moved.between(xi.between(xj))), None
-    h_exp, h_i, h_j, h_d, h_b, h_log = (np.zeros((3, 3), order="F") for _ in range(6))
-    moved = delta.compose(gtsam.Pose2.Expmap(jacobian @ (theta - nominal), h_exp))
-    e = gtsam.Pose2.Logmap(moved.between(xi.between(xj, h_i, h_j), h_d, h_b), h_log)
-    outer = whiten @ h_log
-    to_b, d_theta = outer @ h_b, outer @ h_d @ h_exp @ jacobian
-    return whiten @ e, [to_b @ h_i, to_b @ h_j] + [d_theta[:, [c]] for c in range(3)]
+        return e, None
+    b0, b1 = log[0] * ek - log[1] * em, log[0] * em + log[1] * ek  # Jr(log)'s last column
+    to_log = _product(whiten, ((ef / n, -eg / n, -(ef * b0 - eg * b1) / n),
+                               (eg / n, ef / n, -(eg * b0 + ef * b1) / n), (0.0, 0.0, 1.0)))
+    jr_u = ((f, g, u0 * k - u1 * m), (-g, f, u0 * m + u1 * k), (0.0, 0.0, 1.0))
+    d_theta = _product(_product(_product(to_log, _adjoint_inverse(error)), jr_u), jacobian)
+    d_xi = _product(to_log, _adjoint_inverse(b))
+    blocks = np.array([r_i + r_j + r_t for r_i, r_j, r_t in zip(d_xi, to_log, d_theta)])  # negated below
+    blocks[:, :3] *= -1.0
+    blocks[:, 6:] *= -1.0
+    return e, [blocks[:, :3], blocks[:, 3:6], blocks[:, 6:7], blocks[:, 7:8], blocks[:, 8:9]]
