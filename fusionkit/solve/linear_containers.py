@@ -1,17 +1,21 @@
-"""Vectorized factors in iSAM2 and the fixed-lag smoother, without a Python call per factor.
+"""Python factors in iSAM2 and the fixed-lag smoother, linearized by fusionkit, never called from C++.
 
 GTSAM's incremental solvers linearize factors from C++, where a Python factor costs a callback and a
-copy of the whole Values per call (benchmarks/README.md, (a2)). Instead, each factor of a vectorized
-group (graph/vectorized.py) enters as a `gtsam.LinearContainerFactor` holding its whitened Jacobian at
-the solver's linearization point theta, which the solver evaluates natively.
+copy of the whole Values per call (benchmarks/README.md, (a2)), and every few updates iSAM2
+re-eliminates the whole tree in batch, linearizing every factor it holds again: in a fixed-lag window
+of Python factors, a periodic slow step. Instead, each factor of a vectorized group
+(graph/vectorized.py) and each plain Python factor (`gtsam.CustomFactor`) enters as a
+`gtsam.LinearContainerFactor` holding its whitened Jacobian at the solver's linearization point theta,
+which the solver evaluates natively (moved to another point to first order); a group is linearized
+in one call, a Python factor by its own `linearize`. Native GTSAM factors enter as they are.
 
 iSAM2 relinearizes a variable when, at the start of an update, its step delta (from the previous
 solution) reaches `relinearize_threshold` in any component; its theta then becomes theta (+) delta, the
 estimate handed out after the previous update. fusionkit applies the same test before each update and,
 in that same update, swaps the factors on those variables for ones linearized at their new theta
 (removed by index, re-added; one call per group). So the solver holds, at every update, the
-linearizations it would have made itself: the same results as the factors as CustomFactors (tests), with
-no callback into Python and no copy of the Values."""
+linearizations it would have made itself: the same results as the factors handed over as CustomFactors
+(tests), with no callback into Python and no copy of the Values."""
 
 from __future__ import annotations
 
@@ -24,10 +28,24 @@ from ..graph.evaluator import in_group
 from ..graph.vectorized import ValueReader
 
 
+def tracked(record) -> str | None:
+    """How a factor enters an incremental solver: "group" (linearized with its vectorized group), "factor" (a
+    Python factor linearized alone), None (a native factor, handed over as it is)."""
+    if in_group(record):
+        return "group"
+    return "factor" if isinstance(record.factor, gtsam.CustomFactor) else None
+
+
+def _keys(entry: tuple) -> list[int]:
+    """The variables of a tracked entry: (group, row) or (None, Python factor)."""
+    source, row = entry
+    return source.keys[row].tolist() if source is not None else list(row.keys())
+
+
 @dataclass
 class Step:
-    """What one solver update adds: the factors in order, the grouped entries among them (their
-    position in `graph`, group, row) and the solver indices of factors to remove."""
+    """What one solver update adds: the factors in order, the tracked entries among them (their position in
+    `graph`, group and row, or None and the Python factor) and the solver indices of factors to remove."""
 
     graph: gtsam.NonlinearFactorGraph = field(default_factory=gtsam.NonlinearFactorGraph)
     entries: list[tuple[int, object, int]] = field(default_factory=list)
@@ -35,13 +53,13 @@ class Step:
 
 
 class LinearContainers:
-    """Tracks the vectorized factors handed to one incremental solver: which solver index holds which
-    (group, row), and which of them sit on each variable."""
+    """Tracks the Python factors handed to one incremental solver: which solver index holds which entry
+    ((group, row) or (None, factor)), and which of them sit on each variable."""
 
     def __init__(self, threshold: float, vartype_of):
         self.threshold = threshold
         self.vartype_of = vartype_of  # key -> VarType
-        self.slot: dict[int, tuple[object, int]] = {}  # solver factor index -> (group, row)
+        self.slot: dict[int, tuple] = {}  # solver factor index -> (group, row) or (None, Python factor)
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
         self._dims: dict[int, int] = {}
 
@@ -62,62 +80,74 @@ class LinearContainers:
         return self._dims[key]
 
     def step(self, records, solver, new_values: gtsam.Values) -> Step:
-        """The next update of `solver` (gtsam.ISAM2 or IncrementalFixedLagSmoother): `records`' plain factors
-        as they are, their vectorized ones and the tracked ones on variables the update relinearizes,
-        linearized in one call per group at theta as it will be after the update's relinearization: the
-        current estimate for those variables, theta for the others, `new_values` for new variables."""
+        """The next update of `solver` (gtsam.ISAM2 or IncrementalFixedLagSmoother): `records`' native factors
+        as they are, their Python ones and the tracked ones on variables the update relinearizes, linearized
+        (one call per group) at theta as it will be after the update's relinearization: the current estimate
+        for those variables, theta for the others, `new_values` for new variables."""
         out = Step()
         delta = solver.getDelta() if self.slot else None
         moving = self.relinearizing(delta) if delta is not None else set()
-        grouped = []
+        entries = []
         for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
-            g, row = self.slot.pop(index)
-            for k in g.keys[row].tolist():
+            entry = self.slot.pop(index)
+            for k in _keys(entry):
                 self.on_key[k].discard(index)
             out.remove.append(index)
-            grouped.append((g, row))
+            entries.append(entry)
         for r in records:
-            if in_group(r):
-                grouped.append((r.group, r.row))
-            else:
+            kind = tracked(r)
+            if kind is None:
                 out.graph.add(r.factor)
-        if not grouped:
+            else:
+                entries.append((r.group, r.row) if kind == "group" else (None, r.factor))
+        if not entries:
             return out
-        theta = solver.getLinearizationPoint()
-        relinearized = gtsam.Values()  # theta (+) delta of the variables the update relinearizes
-        for k in moving:
-            relinearized.insert(k, self.vartype_of(k).read(theta, k))
-        if moving:
-            relinearized = relinearized.retract(delta)
-        at = gtsam.Values()
-        for k in dict.fromkeys(k for g, row in grouped for k in g.keys[row].tolist()):
-            source = relinearized if k in moving else theta if theta.exists(k) else new_values
-            at.insert(k, self.vartype_of(k).read(source, k))
+        at = self._linearization_point(solver.getLinearizationPoint(), delta, moving)
+        at.insert(new_values)
         reader = ValueReader(at)
         by_group: dict[int, tuple[object, list[int]]] = {}
-        for g, row in grouped:
-            by_group.setdefault(id(g), (g, []))[1].append(row)
+        for source, row in entries:
+            if source is None:
+                self._add(out, (None, row), row.linearize(at), at)
+            else:
+                by_group.setdefault(id(source), (source, []))[1].append(row)
         for g, rows in by_group.values():
             for row, linear in zip(rows, g.subset(np.asarray(rows)).linear_factors(reader)):
-                out.entries.append((out.graph.size(), g, row))
-                # GTSAM keeps only the factor's own keys of the point it is given (LinearContainerFactor.cpp)
-                out.graph.add(gtsam.LinearContainerFactor(linear, at))
+                self._add(out, (g, row), linear, at)
         return out
+
+    @staticmethod
+    def _linearization_point(theta: gtsam.Values, delta: gtsam.VectorValues | None, moving: set[int]) -> gtsam.Values:
+        """theta with the variables in `moving` at theta (+) delta (the estimate the previous update handed
+        out): built in C++ (gtsam.Values.insert of a float costs ~35 us in its overload resolution)."""
+        if not moving:
+            return gtsam.Values(theta)
+        steps = gtsam.VectorValues()
+        for k in moving:
+            steps.insert(k, delta.at(k))
+        masked = gtsam.VectorValues.Zero(delta)
+        masked.update(steps)
+        return theta.retract(masked)
+
+    @staticmethod
+    def _add(out: Step, entry: tuple, linear: gtsam.GaussianFactor, at: gtsam.Values) -> None:
+        out.entries.append((out.graph.size(), *entry))
+        # GTSAM keeps only the factor's own keys of the point it is given (LinearContainerFactor.cpp)
+        out.graph.add(gtsam.LinearContainerFactor(linear, at))
 
     def added(self, step: Step, new_indices) -> None:
         """Record the solver indices the update gave the step's factors."""
         indices = list(new_indices)
-        for position, g, row in step.entries:
+        for position, source, row in step.entries:
             index = int(indices[position])
-            self.slot[index] = (g, row)
-            for k in g.keys[row].tolist():
+            self.slot[index] = (source, row)
+            for k in _keys((source, row)):
                 self.on_key.setdefault(k, set()).add(index)
 
     def forget(self, keys) -> None:
         """Variables the smoother marginalized: it removed their factors itself."""
         for k in keys:
             for index in self.on_key.pop(k, set()):
-                g, row = self.slot.pop(index)
-                for other in g.keys[row].tolist():
+                for other in _keys(self.slot.pop(index)):
                     if other != k and other in self.on_key:
                         self.on_key[other].discard(index)

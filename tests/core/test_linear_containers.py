@@ -61,7 +61,7 @@ def runs():
             out[name] = fusionkit.run(SCALED_VO, SHORT + extra + ["solver.marginals=false"])
             out[name + "_calls"] = dict(calls)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(linear_containers, "in_group", lambda record: False)
+        mp.setattr(linear_containers, "tracked", lambda record: None)
         for name, extra in SOLVERS.items():
             out[name + "_one_by_one"] = fusionkit.run(SCALED_VO, SHORT + extra + ["solver.marginals=false"])
     return out
@@ -86,3 +86,61 @@ def test_incremental_estimates_with_containers_match_the_one_by_one_factors(runs
 def test_isam2_with_containers_reaches_the_batch_solution(runs):
     assert _pose_gap(runs["lm"], runs["isam2"]) < 1e-3
     assert runs["isam2"].solution.final_error == pytest.approx(runs["lm"].solution.final_error, rel=1e-3)
+
+
+def _preintegrated_fixed_lag(monkeypatch, track_python: bool) -> tuple:
+    """20 s of wheels.preintegrated + camera poses (fixed lag 5 s after a 5 s warm-up), counting the Python
+    factor's linearizations made inside the smoother's updates (between LinearContainers.step and .added)."""
+    from fusionkit.pipeline import estimate
+    from fusionkit.simulate import simulated_config
+    from fusionkit_plugins.wheels import factors as wheel_factors
+
+    inside, calls = [False], {"update": 0}
+    error, step, added, tracked = (wheel_factors._preintegrated_error, linear_containers.LinearContainers.step,
+                                   linear_containers.LinearContainers.added, linear_containers.tracked)
+
+    def counted(*args):
+        calls["update"] += inside[0] and args[-1] is not None
+        return error(*args)
+
+    def stepped(self, *args):
+        out = step(self, *args)
+        inside[0] = True
+        return out
+
+    def recorded(self, *args):
+        inside[0] = False
+        return added(self, *args)
+
+    monkeypatch.setattr(wheel_factors, "_preintegrated_error", counted)
+    monkeypatch.setattr(linear_containers.LinearContainers, "step", stepped)
+    monkeypatch.setattr(linear_containers.LinearContainers, "added", recorded)
+    if not track_python:
+        monkeypatch.setattr(linear_containers, "tracked", lambda r: "group" if tracked(r) == "group" else None)
+
+    def edit(config):
+        config["robots"]["robot"]["states"]["every"] = 10
+        config["factors"] = [config["factors"][0],
+                             {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels", "sigma": 2e-4},
+                             {"type": "pose.absolute", "robot": "robot", "stream": "camera",
+                              "sigma": {"rotation": 0.02, "translation": 0.0028}}]
+        config["initializers"] = [{"type": "pose.interpolate", "robot": "robot", "stream": "camera"}]
+        config["solver"] = {"type": "fixed_lag", "lag": 5.0, "warmup": 5.0}
+    with simulated_config("wheels.sim", {"duration": 20.0, "path": "figure_eight"}, seed=0, edit=edit) as config:
+        return estimate(config), calls["update"]
+
+
+def test_the_fixed_lag_smoother_never_calls_a_plain_python_factor_and_estimates_as_if_it_did(monkeypatch):
+    """wheels.preintegrated is a plain CustomFactor: handed over as it is, iSAM2 calls it inside its updates
+    (every window factor again when it re-eliminates in batch); tracked, never, with the same estimates."""
+    tracked, in_update = _preintegrated_fixed_lag(monkeypatch, True)
+    monkeypatch.undo()
+    plain, plain_in_update = _preintegrated_fixed_lag(monkeypatch, False)
+    assert in_update == 0 and plain_in_update > 50
+    states = tracked.problem.states["robot"]
+    gap = max(np.abs(tracked.solution.values.atPose2(states.key(k)).localCoordinates(
+        plain.solution.values.atPose2(states.key(k)))).max() for k in range(len(states)))
+    assert gap < 1e-4, gap
+    for name in ("wheel_radius_left", "wheel_radius_right", "axle_length"):
+        a, b = (r.parameters["robot"][name] for r in (tracked, plain))
+        assert abs(a.values[0] - b.values[0]) < 0.05 * a.sigma[0, 0], name
