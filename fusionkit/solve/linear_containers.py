@@ -36,30 +36,31 @@ def tracked(record) -> str | None:
     return "factor" if isinstance(record.factor, gtsam.CustomFactor) else None
 
 
-def _keys(entry: tuple) -> list[int]:
-    """The variables of a tracked entry: (group, row) or (None, Python factor)."""
-    source, row = entry
-    return source.keys[row].tolist() if source is not None else list(row.keys())
+def _entry(record, kind: str) -> tuple:
+    """A tracked factor: (group, row, its variables) or (None, Python factor, its variables)."""
+    if kind == "group":
+        return record.group, record.row, tuple(record.group.keys[record.row].tolist())
+    return None, record.factor, tuple(record.factor.keys())
 
 
 @dataclass
 class Step:
     """What one solver update adds: the factors in order, the tracked entries among them (their position in
-    `graph`, group and row, or None and the Python factor) and the solver indices of factors to remove."""
+    `graph` and the entry, see _entry) and the solver indices of factors to remove."""
 
     graph: gtsam.NonlinearFactorGraph = field(default_factory=gtsam.NonlinearFactorGraph)
-    entries: list[tuple[int, object, int]] = field(default_factory=list)
+    entries: list[tuple[int, tuple]] = field(default_factory=list)
     remove: list[int] = field(default_factory=list)
 
 
 class LinearContainers:
     """Tracks the Python factors handed to one incremental solver: which solver index holds which entry
-    ((group, row) or (None, factor)), and which of them sit on each variable."""
+    (_entry), and which of them sit on each variable."""
 
     def __init__(self, threshold: float, vartype_of):
         self.threshold = threshold
         self.vartype_of = vartype_of  # key -> VarType
-        self.slot: dict[int, tuple] = {}  # solver factor index -> (group, row) or (None, Python factor)
+        self.slot: dict[int, tuple] = {}  # solver factor index -> _entry
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
         self._dims: dict[int, int] = {}
 
@@ -90,7 +91,7 @@ class LinearContainers:
         entries = []
         for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
             entry = self.slot.pop(index)
-            for k in _keys(entry):
+            for k in entry[2]:
                 self.on_key[k].discard(index)
             out.remove.append(index)
             entries.append(entry)
@@ -99,21 +100,22 @@ class LinearContainers:
             if kind is None:
                 out.graph.add(r.factor)
             else:
-                entries.append((r.group, r.row) if kind == "group" else (None, r.factor))
+                entries.append(_entry(r, kind))
         if not entries:
             return out
         at = self._linearization_point(solver.getLinearizationPoint(), delta, moving)
         at.insert(new_values)
         reader = ValueReader(at)
-        by_group: dict[int, tuple[object, list[int]]] = {}
-        for source, row in entries:
-            if source is None:
-                self._add(out, (None, row), row.linearize(at), at)
+        by_group: dict[int, list[tuple]] = {}
+        for entry in entries:
+            if entry[0] is None:
+                self._add(out, entry, entry[1].linearize(at), at)
             else:
-                by_group.setdefault(id(source), (source, []))[1].append(row)
-        for g, rows in by_group.values():
-            for row, linear in zip(rows, g.subset(np.asarray(rows)).linear_factors(reader)):
-                self._add(out, (g, row), linear, at)
+                by_group.setdefault(id(entry[0]), []).append(entry)
+        for group_entries in by_group.values():
+            rows = np.asarray([row for _, row, _ in group_entries])
+            for entry, linear in zip(group_entries, group_entries[0][0].subset(rows).linear_factors(reader)):
+                self._add(out, entry, linear, at)
         return out
 
     @staticmethod
@@ -131,23 +133,23 @@ class LinearContainers:
 
     @staticmethod
     def _add(out: Step, entry: tuple, linear: gtsam.GaussianFactor, at: gtsam.Values) -> None:
-        out.entries.append((out.graph.size(), *entry))
+        out.entries.append((out.graph.size(), entry))
         # GTSAM keeps only the factor's own keys of the point it is given (LinearContainerFactor.cpp)
         out.graph.add(gtsam.LinearContainerFactor(linear, at))
 
     def added(self, step: Step, new_indices) -> None:
         """Record the solver indices the update gave the step's factors."""
         indices = list(new_indices)
-        for position, source, row in step.entries:
+        for position, entry in step.entries:
             index = int(indices[position])
-            self.slot[index] = (source, row)
-            for k in _keys((source, row)):
+            self.slot[index] = entry
+            for k in entry[2]:
                 self.on_key.setdefault(k, set()).add(index)
 
     def forget(self, keys) -> None:
         """Variables the smoother marginalized: it removed their factors itself."""
         for k in keys:
             for index in self.on_key.pop(k, set()):
-                for other in _keys(self.slot.pop(index)):
+                for other in self.slot.pop(index)[2]:
                     if other != k and other in self.on_key:
                         self.on_key[other].discard(index)
