@@ -37,6 +37,9 @@ def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
     p = gtsam.ISAM2Params()
     p.setRelinearizeThreshold(settings["relinearize_threshold"])
     p.relinearizeSkip = 1
+    # a removed factor leaves an empty slot in iSAM2's factor list, and fusionkit removes factors at every update
+    # (linear_containers: swapped when relinearized): reuse the slots, or the list and each update's cost grow
+    p.findUnusedFactorSlots = True
     # QR by default (config.schema.SOLVER_TYPE_DEFAULTS): Cholesky declared weakly observed directions
     # (a scale with a loose prior) singular; `factorization: cholesky` is faster where the graph is well conditioned
     p.setFactorization("CHOLESKY" if settings["factorization"] == "cholesky" else "QR")
