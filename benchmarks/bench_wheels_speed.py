@@ -162,9 +162,12 @@ def fixed_lag(quick: bool) -> tuple[str, dict]:
                                   "p99_ms_runs": [m["p99_ms"] for m in measured], **({"ate_m": ate} if ate_text else {})}
             rows.append([label, measured[0]["steps"], len(measured), f"{row['p50_ms']:.3f}", f"{row['p99_ms']:.3f}",
                          f"{row['max_ms']:.2f}", ate_text])
-    return table(["variant", "steps", "runs", "p50 ms", "p99 ms", "max ms", "ATE m"], rows,
-                 f"wheels fixed-lag (5 s batch warm-up): per-step latency over {duration:.0f} s "
-                 "(median over runs)"), raw
+    text = table(["variant", "steps", "runs", "p50 ms", "p99 ms", "max ms", "ATE m"], rows,
+                 f"wheels fixed-lag (5 s batch warm-up): per-step latency over {duration:.0f} s (median over runs)")
+    for name, d in raw.items():
+        if d.get("runs", 1) > 1:
+            text += f"\n{name}: p99 of each run " + ", ".join(f"{v:.3f}" for v in d["p99_ms_runs"]) + " ms"
+    return text, raw
 
 
 def run(quick: bool) -> dict:
