@@ -8,10 +8,9 @@ from ..graph.builder import Problem
 from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
-from .covariance_recovery import recovered_marginals
+from .covariance_recovery import recovered_marginals, tree_marginals
 from .factorization import linear_settings, resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
-from .marginals import tree_marginals
 from .result import SolveResult
 
 FIXED_LAG_ALLOWED_RISE = 9.0  # relative: a fixed-lag median factor cost ten times the initial one is divergence

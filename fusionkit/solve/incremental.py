@@ -28,8 +28,8 @@ from ..graph.builder import Problem
 from ..graph.evaluator import GraphEvaluator
 from ..graph.keys import STATE
 from .checks import check_constrained, unconstrained_message
+from .covariance_recovery import tree_marginals
 from .linear_containers import LinearContainers
-from .marginals import tree_marginals
 from .result import SolveResult
 
 

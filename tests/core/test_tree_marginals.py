@@ -1,10 +1,10 @@
-"""tree_marginals (one elimination, cliques on a shared separator computed together) against
+"""tree_marginals (one elimination, one top-down pass through the Bayes tree) against
 gtsam.Marginals on the two shapes it meets: many states hanging on the same parameters, and a chain."""
 
 import gtsam
 import numpy as np
 
-from fusionkit.solve.marginals import tree_marginals
+from fusionkit.solve.covariance_recovery import tree_marginals
 
 
 def _star_graph(rng, n_states=40):
