@@ -1,10 +1,10 @@
-# Two entry points (see README): `make quickstart` and `make test`. Both set up .venv first.
+# Entry points (see README): `make quickstart` and `make test` (then `make test-slow`). All set up .venv first.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup bytecode quickstart test bench clean
+.PHONY: setup bytecode quickstart test test-slow bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,8 +23,12 @@ bytecode: $(STAMP)
 quickstart: bytecode
 	$(BIN)/fusionkit run configs/quickstart.yaml --out out/quickstart
 
+# the tests but the slow tier (pytest marker `slow`: end-to-end runs of 3 s or more), then that tier
 test: bytecode
-	$(BIN)/python -m pytest -q -n 2 --dist worksteal
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not slow"
+
+test-slow: bytecode
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m slow
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py --quick

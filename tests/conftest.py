@@ -96,6 +96,7 @@ def pytest_configure(config):
 
 
 def pytest_collection_modifyitems(items):
-    """The executed tutorials (the longest tests, 7-46 s each) first: with `--dist worksteal` (make test)
-    the other worker takes the short tests meanwhile, and no tutorial starts last and runs alone."""
-    items.sort(key=lambda item: "test_tutorials.py" not in item.nodeid)
+    """The longest tests first -- the executed tutorials (7-46 s each), then the rest of the slow tier: with
+    `--dist worksteal` the other worker takes the short tests meanwhile, and no long test starts last and
+    runs alone."""
+    items.sort(key=lambda item: ("test_tutorials.py" not in item.nodeid, item.get_closest_marker("slow") is None))

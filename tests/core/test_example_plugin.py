@@ -154,6 +154,7 @@ def test_plugin_check_errors_are_one_line_located_in_the_demo_config(installed, 
     assert len(proc.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_demo_estimates_the_bias_within_3_sigma_and_3_cm(installed):
     out = installed["root"] / "out"
     proc = run([*_fusionkit_cmd(), "run", str(DEMO), "--out", str(out)], installed)

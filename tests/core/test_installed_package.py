@@ -92,6 +92,7 @@ def test_installed_package_is_imported_from_the_venv_not_the_repository(installe
     assert len(files) == 2 and all(f.is_relative_to(installed.parent) for f in files), files
 
 
+@pytest.mark.slow
 def test_quickstart_from_another_folder_self_calibrates_as_in_the_repository(installed, tmp_path):
     """A copy of configs/quickstart.yaml (`description: arascam`, by name) in a folder of its own:
     the same bounds as tests/plugins/cable_rigid/test_configs.py (measured: scale error 0.0009,

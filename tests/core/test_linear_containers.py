@@ -67,6 +67,7 @@ def runs():
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SOLVERS)
 def test_incremental_solvers_never_evaluate_a_vectorized_factor_one_at_a_time(runs, name):
     calls = runs[name + "_calls"]
@@ -74,6 +75,7 @@ def test_incremental_solvers_never_evaluate_a_vectorized_factor_one_at_a_time(ru
     assert calls["alone"] == 0 and calls["group"] > 100
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SOLVERS)
 def test_incremental_estimates_with_containers_match_the_one_by_one_factors(runs, name):
     gap = _pose_gap(runs[name], runs[name + "_one_by_one"])
@@ -83,6 +85,7 @@ def test_incremental_estimates_with_containers_match_the_one_by_one_factors(runs
     assert scale(runs[name]) == pytest.approx(scale(runs[name + "_one_by_one"]), abs=0.2 * sigma)
 
 
+@pytest.mark.slow
 def test_isam2_with_containers_reaches_the_batch_solution(runs):
     assert _pose_gap(runs["lm"], runs["isam2"]) < 1e-3
     assert runs["isam2"].solution.final_error == pytest.approx(runs["lm"].solution.final_error, rel=1e-3)

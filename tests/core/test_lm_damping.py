@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
@@ -24,6 +26,7 @@ def test_badly_scaled_sagging_cable_calibration_needs_marquardt_damping():
     assert levenberg.solution.final_error > 1e6 * marquardt.solution.final_error
 
 
+@pytest.mark.slow
 def test_a_camera_dropout_needs_levenberg_damping():
     """IMU + VO, 60 s with an 8-s dropout: Levenberg converges in a few iterations, Marquardt crawls."""
     params = {}  # 60 s, the 8-s dropout from 25 s (45 s: both converge in 6 iterations)

@@ -66,6 +66,7 @@ def test_noise_as_simulated_gets_scales_within_3_sigma_of_1_and_chi2_per_dof_1(e
     assert result.solution.chi2_per_dof == pytest.approx(1.0, abs=0.05)
 
 
+@pytest.mark.slow
 def test_vo_sigmas_stated_3x_too_large_are_scaled_to_a_third_of_the_right_statement(dataset, estimated):
     """Mis-specified noise: the estimate does not depend on how wrong the statement was -- the estimated
     sigmas (stated times scale) are those estimated from the right statement, to 3 %."""

@@ -256,6 +256,7 @@ CHECKS = {"scaled_vo": check_scaled_vo, "imu_vo_bag": check_imu_vo_bag, "cable_r
           "epuck": check_epuck}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("md", TUTORIALS, ids=[p.stem for p in TUTORIALS])
 def test_tutorial_runs_as_typed_and_its_estimates_meet_their_error_bounds(md: Path, tmp_path: Path,
                                                                        forked_fusionkit: Path) -> None:

@@ -19,6 +19,7 @@ def table(request):
     return request.param, table_4_1(request.param, SEEDS)
 
 
+@pytest.mark.slow
 def test_fusion_beats_fk_by_10_and_vo_by_60_percent_within_2_cm(table):
     """Source: fused 23-25% better than FK and 72% better than VO. Measured over 30 seeds:
     dynamic FK 1.7 / VO 10.2 / fused 1.2 cm, smooth 0.9 / 4.1 / 0.7 cm."""
@@ -48,6 +49,7 @@ def test_position_sigmas_pooled_over_seeds_are_within_15_points_of_68_percent(ta
     assert 0.3 < r["scale_z_rms"] < 2.0
 
 
+@pytest.mark.slow
 def test_pseudo_measurements_halve_the_pulley_shape_error_to_under_5_mm():
     """Coplanarity + 4 taped distances (3 mm): the pulley geometry (after rigid alignment) improves
     about 5x (measured 1.0 -> 0.2 cm); the placement in the zero pose's frame, which they do not
@@ -69,6 +71,7 @@ def test_shape_error_ignores_rigid_motion():
     assert 0.01 < shape_error(bent, pts) < 0.1
 
 
+@pytest.mark.slow
 def test_fixed_lag_with_warmup_tracks_within_1_3x_batch_ate_and_1_percent_scale():
     """Warm-up over the calibration motion (14 s), then a 1 s window: each frame is one bounded
     update (benchmark: p99 about 4 ms at 30 Hz), the trajectory within 30% of batch's error."""

@@ -257,6 +257,7 @@ def write_config(workspace, D: Dataset, **mc) -> str:
     return workspace.config(config)
 
 
+@pytest.mark.slow
 def test_config_run_puts_pulleys_within_3_cm_and_the_scale_within_0_5_percent(workspace, tmp_path):
     D = make_dataset(seed=4)
     result = fusionkit.run(write_config(workspace, D))

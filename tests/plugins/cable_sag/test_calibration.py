@@ -25,6 +25,7 @@ def large35():
     return [calibrate("cdpr_large", 35, seed) for seed in range(3)]
 
 
+@pytest.mark.slow
 def test_large_robot_35_poses_matches_table_5_2(large35):
     """Source: 0.191 m pulleys, 0.173 m offsets from starts up to 10 m off. Measured at 1 cm / 5 mrad
     vision over 10 seeds: 0.185 / 0.175 m; every run inside its own sigmas."""
@@ -55,6 +56,7 @@ def test_refined_solve_helps_where_the_data_match_the_model():
     assert refined["pulley_m"] < 0.8 * one["pulley_m"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot, poses, source", [("cdpr_large", 9, (0.387, 0.380)), ("cdpr_small", 8, (0.149, 0.115))])
 def test_table_5_2_at_the_source_codes_vision_noise(robot, poses, source):
     """The contract: at the vision noise of the source's public simulation code (0.19 mm, 0.019 deg
@@ -81,6 +83,7 @@ def test_rigid_graph_is_ten_times_worse(large35):
     assert errors(rigid)[0] > 10 * errors(large35[0])[0]
 
 
+@pytest.mark.slow
 def test_simulate_and_run_from_the_command_line(tmp_path):
     cli = Path(sys.executable).parent / "fusionkit"
     subprocess.run([str(cli), "simulate", "cable.sag_static", "--out", str(tmp_path / "sim"), "--seed", "2",
@@ -132,6 +135,7 @@ def test_refined_solve_makes_the_small_robot_worse_on_the_finite_element_poses()
     assert refined["pulley_m"] > 1.5 * one["pulley_m"]
 
 
+@pytest.mark.slow
 @needs_fe_data
 @pytest.mark.parametrize("robot, poses, limit", [("cdpr_large", 93, 0.2), ("cdpr_small", 8, 0.15)])
 def test_calibration_on_the_finite_element_poses(robot, poses, limit):

@@ -25,6 +25,7 @@ def pulley_error(seed: int, orientation_sigma: float | None, com_error: float = 
     return result.evaluation["parameters"]["cdpr"]["pulley"]["mean_abs_error"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_measured_orientation_sharpens_the_pulleys_when_the_statics_match(seed):
     """Measured (seeds 0-4): mean pulley error 0.156, 0.104, 0.055, diverged, 0.051 m without; 0.041, 0.050,
@@ -32,6 +33,7 @@ def test_the_measured_orientation_sharpens_the_pulleys_when_the_statics_match(se
     assert pulley_error(seed, VISION_ROTATION) < 0.6 * pulley_error(seed, None)
 
 
+@pytest.mark.slow
 def test_a_centre_of_mass_off_the_description_is_a_misfit_the_chi_square_shows():
     """com_error: the simulator's statics use a centre of mass 2 cm (rms per axis) off the description's,
     which the estimator uses: its chi-square per degree of freedom leaves 1 (measured, seed 0: 0.90 -> 1.91)."""

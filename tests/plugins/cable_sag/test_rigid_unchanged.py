@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[3]
 
 
@@ -27,6 +29,7 @@ def _run(out: Path, block: str) -> dict:
             "trajectory": (out / "trajectories/cdpr.tum").read_bytes()}
 
 
+@pytest.mark.slow
 def test_rigid_results_identical_with_and_without_the_sag_plugin(tmp_path):
     without = _run(tmp_path / "without", "cable_sag")
     with_sag = _run(tmp_path / "with", "")

@@ -111,6 +111,7 @@ def test_batch_recovers_scale_and_bias_and_the_dropout_widens_the_sigmas():
     assert after > 2 * before  # the IMU alone across 6 s
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("new_states", ["carried", "initial"])
 def test_fixed_lag_keeps_the_scale_only_when_new_states_carry_the_estimate_forward(new_states):
     """Without a dropout (30 s, 3-s window): carried forward, new states start where the smoother already is;
@@ -128,6 +129,7 @@ def test_fixed_lag_keeps_the_scale_only_when_new_states_carry_the_estimate_forwa
         assert error > 1.0 and ate > 1.5
 
 
+@pytest.mark.slow
 def test_fixed_lag_across_the_dropout_is_not_taken_for_divergence_and_stays_within_a_metre():
     """The states on either side of the window's edge when the camera returns disagree (the full-graph cost
     rises tenfold); the median factor does not."""

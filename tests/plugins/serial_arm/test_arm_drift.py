@@ -33,6 +33,7 @@ def drift_errors(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return est.series_t, values - drift_truth(PARAMS, est.series_t, start), np.ravel(est.sigma), values
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, settled", [("batch", 0.0), ("isam2", 10.0), ("fixed_lag", 30.0)])
 def test_the_drifting_offset_is_tracked_to_a_twentieth_of_its_drift(runs, solver, settled):
     """rms error below 0.2 mrad (measured over seeds 2-4: 0.08-0.10 mrad) once `settled` s have passed -- the

@@ -31,6 +31,7 @@ def test_mocap_pose_stamped_t_shows_the_vehicle_at_t_plus_the_offset():
     assert truth["mocap_time_offset"]["value"] == LAG and truth["mocap_clock_rate"]["value"] == 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("velocities", [True, False])
 def test_mocap_lag_is_guessed_within_5_ms_and_estimated_within_3_sigma_of_1_ms(velocities):
     """15 s, ranges (states) at 10 Hz, IMU 200 Hz, mocap 50 Hz lagging 20 ms."""
@@ -72,6 +73,7 @@ def _batch_lag_estimate() -> tuple[float, float]:
 @pytest.mark.parametrize("solver", [{"type": "isam2", "warmup": 2.0, "relinearize_threshold": 1e-3},
                                     {"type": "fixed_lag", "lag": 4.0, "warmup": 2.0, "relinearize_threshold": 1e-3}],
                          ids=["isam2", "fixed_lag"])
+@pytest.mark.slow
 def test_incremental_solvers_estimate_the_mocap_lag_as_batch_does(solver):
     """8 s; measured (seed 1): batch -20.26 +- 1.92 ms, iSAM2 -20.22 +- 1.91, fixed-lag -20.18 +- 1.66. With the
     default relinearize_threshold (0.01) neither converges on this IMU graph (see unified_graph.md)."""

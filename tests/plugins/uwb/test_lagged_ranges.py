@@ -5,6 +5,7 @@ each robot's offset (and clock rate)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fusionkit_plugins.uwb.simulator import LEVER_ARM, ROOM, UwbSimulator, lissajous
 
@@ -53,6 +54,7 @@ def test_drifting_ranging_clock_reads_the_tag_at_stamp_plus_offset_plus_rate_and
     assert entry["time_offset"] == {"parameter": "uwb_time_offset", "rate": "uwb_clock_rate"}
 
 
+@pytest.mark.slow
 def test_a_drifting_ranging_clock_is_estimated_within_3_sigma_by_the_written_config():
     """60 s, ranges 50 ms late, the ranging clock gaining 1 ms per s (self-consistency: the config's noise is
     the simulator's). Measured (seed 0): offset -52 +- 40 ms, rate 2.1 +- 1.1 ms/s; a minute pins the rate

@@ -25,6 +25,7 @@ def test_the_automatic_window_is_one_round_for_round_robin_ranging_and_zero_for_
     assert round_window(full, np.tile(np.arange(4), 50), 3) == 0.0
 
 
+@pytest.mark.slow
 def test_round_robin_ranging_converges_from_the_shipped_initialization_over_20_seeds():
     chi2, ate = [], []
     for seed in range(20):

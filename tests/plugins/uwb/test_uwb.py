@@ -25,6 +25,7 @@ def models():
     return bias_models(range(2))
 
 
+@pytest.mark.slow
 def test_drifting_bias_time_varying_model_beats_constant_and_none_within_10_cm(models):
     """Self-consistency (estimator noise = simulator noise). Measured (2 seeds, 60 s at 10 Hz, bias
     0.15 m drifting 0.03 m/sqrt(s)): position 0.25 /
@@ -80,6 +81,7 @@ def test_graph_halves_the_error_of_per_epoch_multilateration():
     assert position_rmse(r) < 0.5 * per_epoch_multilateration(r)
 
 
+@pytest.mark.slow
 def test_simulate_and_run_from_the_command_line_track_within_15_cm(tmp_path):
     cli = Path(sys.executable).parent / "fusionkit"
     subprocess.run([str(cli), "simulate", "uwb.sim", "--out", str(tmp_path / "sim"), "--set", "duration=20"],
@@ -91,6 +93,7 @@ def test_simulate_and_run_from_the_command_line_track_within_15_cm(tmp_path):
     assert report["evaluation"]["trajectories"]["a"]["ate_rmse_m"] < 0.15
 
 
+@pytest.mark.slow
 @needs_labyrinth
 def test_labyrinth_constant_bias_tracks_within_13_cm_beating_no_bias_and_multilateration():
     """Per-epoch multilateration 0.197 m; the graph without bias 0.169 m, with a constant bias per

@@ -86,6 +86,7 @@ def test_fixed_lag_tracks_a_drifting_radius_with_preintegrated_odometry_within_3
     assert abs(z[-1]) < 3 and np.mean(np.abs(z[len(z) // 2:]) < 3) > 0.95
 
 
+@pytest.mark.slow
 def test_two_updates_per_step_keep_a_per_step_fixed_lag_within_1_mm_over_30_s():
     """Per-wheel encoder factors at 20 Hz with the camera, fixed-lag 2 s after a 5 s batch warm-up, 30 s
     figure eight (the speed benchmark's quick case): with one Gauss-Newton step per update the smoother
