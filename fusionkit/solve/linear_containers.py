@@ -62,18 +62,30 @@ class LinearContainers:
         self.vartype_of = vartype_of  # key -> VarType
         self.slot: dict[int, tuple] = {}  # solver factor index -> _entry
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
+        self.fixed: set[int] = set()  # variables iSAM2 holds at their theta for good (see _learn_fixed)
+        self._expected: dict[int, object] = {}  # variables the last update was to relinearize -> their theta then
         self._dims: dict[int, int] = {}
 
-    def relinearizing(self, delta: gtsam.VectorValues) -> set[int]:
-        """The variables with tracked factors that the solver's next update relinearizes (iSAM2's test on
-        the current step: largest component >= threshold)."""
-        keys = [k for k, on in self.on_key.items() if on]
+    def relinearizing(self, delta: gtsam.VectorValues, keys: list[int]) -> set[int]:
+        """Those of `keys` the solver's next update relinearizes: iSAM2's test on the current step (largest
+        component >= threshold), except the variables it holds fixed."""
+        keys = [k for k in keys if k not in self.fixed]
         if not keys:
             return set()
         dims = np.array([self.dim(k) for k in keys])
         step = np.abs(np.asarray(delta.vector(keys), dtype=float).ravel())  # the keys' steps, in their order
         largest = np.maximum.reduceat(step, np.concatenate([[0], np.cumsum(dims)[:-1]]))
         return {k for k, m in zip(keys, largest) if m >= self.threshold}
+
+    def _learn_fixed(self, theta: gtsam.Values) -> None:
+        """The variables the previous update was to relinearize whose theta did not move are held fixed by
+        iSAM2 from then on (a fixed-lag smoother's marginal factors fix their variables' linearization
+        point, ISAM2::marginalizeLeaves): their factors are linearized at that point, not swapped again."""
+        for k, before in self._expected.items():
+            vartype = self.vartype_of(k)
+            if theta.exists(k) and not np.any(vartype.local(before, vartype.read(theta, k))):
+                self.fixed.add(k)
+        self._expected = {}
 
     def dim(self, key: int) -> int:
         if key not in self._dims:
@@ -86,24 +98,31 @@ class LinearContainers:
         (one call per group) at theta as it will be after the update's relinearization: the current estimate
         for those variables, theta for the others, `new_values` for new variables."""
         out = Step()
-        delta = solver.getDelta() if self.slot else None
-        moving = self.relinearizing(delta) if delta is not None else set()
         entries = []
-        for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
-            entry = self.slot.pop(index)
-            for k in entry[2]:
-                self.on_key[k].discard(index)
-            out.remove.append(index)
-            entries.append(entry)
         for r in records:
             kind = tracked(r)
             if kind is None:
                 out.graph.add(r.factor)
             else:
                 entries.append(_entry(r, kind))
+        if not entries and not self.slot:
+            return out
+        theta, delta = solver.getLinearizationPoint(), solver.getDelta()
+        self._learn_fixed(theta)
+        # the variables of tracked factors, and those of the new factors that the solver holds already
+        candidates = dict.fromkeys(k for k, on in self.on_key.items() if on)
+        candidates.update(dict.fromkeys(k for entry in entries for k in entry[2] if delta.exists(k)))
+        moving = self.relinearizing(delta, list(candidates))
+        self._expected = {k: self.vartype_of(k).read(theta, k) for k in moving}
+        for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
+            entry = self.slot.pop(index)
+            for k in entry[2]:
+                self.on_key[k].discard(index)
+            out.remove.append(index)
+            entries.append(entry)
         if not entries:
             return out
-        at = self._linearization_point(solver.getLinearizationPoint(), delta, moving)
+        at = self._linearization_point(theta, delta, moving)
         at.insert(new_values)
         reader = ValueReader(at)
         by_group: dict[int, list[tuple]] = {}
@@ -119,17 +138,14 @@ class LinearContainers:
         return out
 
     @staticmethod
-    def _linearization_point(theta: gtsam.Values, delta: gtsam.VectorValues | None, moving: set[int]) -> gtsam.Values:
+    def _linearization_point(theta: gtsam.Values, delta: gtsam.VectorValues, moving: set[int]) -> gtsam.Values:
         """theta with the variables in `moving` at theta (+) delta (the estimate the previous update handed
-        out): built in C++ (gtsam.Values.insert of a float costs ~35 us in its overload resolution)."""
-        if not moving:
-            return gtsam.Values(theta)
+        out), in C++ (gtsam.Values.insert of a float costs ~35 us in its overload resolution); a copy of all
+        of theta (LinearContainerFactor keeps only its own keys of it)."""
         steps = gtsam.VectorValues()
         for k in moving:
             steps.insert(k, delta.at(k))
-        masked = gtsam.VectorValues.Zero(delta)
-        masked.update(steps)
-        return theta.retract(masked)
+        return theta.retract(steps)  # variables without a step are copied as they are
 
     @staticmethod
     def _add(out: Step, entry: tuple, linear: gtsam.GaussianFactor, at: gtsam.Values) -> None:

@@ -147,3 +147,41 @@ def test_the_fixed_lag_smoother_never_calls_a_plain_python_factor_and_estimates_
     for name in ("wheel_radius_left", "wheel_radius_right", "axle_length"):
         a, b = (r.parameters["robot"][name] for r in (tracked, plain))
         assert abs(a.values[0] - b.values[0]) < 0.05 * a.sigma[0, 0], name
+
+
+def test_every_tracked_factor_is_linearized_where_the_smoother_holds_its_variables(monkeypatch):
+    """The invariant the containers keep: after every update each tracked factor's linear factor is the factor
+    linearized at the solver's linearization point theta -- also for the variables the fixed-lag smoother holds
+    fixed once they carry a marginal factor (here the wheel intrinsics, relinearize_threshold 1e-4, where
+    their step stays above the threshold while theta no longer moves)."""
+    from fusionkit.pipeline import estimate
+    from fusionkit.simulate import simulated_config
+
+    seen = {}
+    step = linear_containers.LinearContainers.step
+
+    def recorded(self, records, solver, new_values):
+        seen.update(containers=self, solver=solver)
+        return step(self, records, solver, new_values)
+
+    monkeypatch.setattr(linear_containers.LinearContainers, "step", recorded)
+
+    def edit(config):
+        config["robots"]["robot"]["states"]["every"] = 10
+        config["factors"] = [config["factors"][0],
+                             {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels", "sigma": 2e-4},
+                             {"type": "pose.absolute", "robot": "robot", "stream": "camera",
+                              "sigma": {"rotation": 0.02, "translation": 0.0028}}]
+        config["initializers"] = [{"type": "pose.interpolate", "robot": "robot", "stream": "camera"}]
+        config["solver"] = {"type": "fixed_lag", "lag": 5.0, "warmup": 5.0, "relinearize_threshold": 1e-4}
+    with simulated_config("wheels.sim", {"duration": 20.0, "path": "figure_eight"}, seed=0, edit=edit) as config:
+        estimate(config)
+    containers, solver = seen["containers"], seen["solver"]
+    theta, held = solver.getLinearizationPoint(), solver.getFactors()
+    assert containers.fixed and len(containers.slot) > 5
+    worst = 0.0
+    for index, (_, factor, _) in containers.slot.items():
+        ours, _ = held.at(index).linearize(theta).jacobian()
+        exact, _ = factor.linearize(theta).jacobian()
+        worst = max(worst, float(np.abs(ours - exact).max() / np.abs(exact).max()))
+    assert worst < 1e-9, worst

@@ -52,7 +52,6 @@ def max_pose_difference(a, b) -> float:
     return max(float(np.abs(POSE3.local(p, q)).max()) for p, q in zip(poses_of(a), poses_of(b)))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("name", SOLVERS)
 def test_solver_recovers_scale_and_trajectory(runs, name):
     result = runs[name]

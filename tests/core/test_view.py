@@ -34,7 +34,6 @@ def _by_label(shapes: list[dict], label: str) -> list[dict]:
     return [s for s in shapes if s["label"] == label]
 
 
-@pytest.mark.slow
 def test_the_scene_holds_the_trajectories_the_pulleys_with_3_sigma_ellipsoids_and_their_truth(run_folder):
     scene = _scene(run_folder)
     report = json.loads((run_folder / "report.json").read_text())

@@ -19,7 +19,6 @@ def table(request):
     return request.param, table_4_1(request.param, SEEDS)
 
 
-@pytest.mark.slow
 def test_fusion_beats_fk_by_10_and_vo_by_60_percent_within_2_cm(table):
     """Source: fused 23-25% better than FK and 72% better than VO. Measured over 30 seeds:
     dynamic FK 1.7 / VO 10.2 / fused 1.2 cm, smooth 0.9 / 4.1 / 0.7 cm."""

@@ -25,7 +25,6 @@ def large35():
     return [calibrate("cdpr_large", 35, seed) for seed in range(3)]
 
 
-@pytest.mark.slow
 def test_large_robot_35_poses_matches_table_5_2(large35):
     """Source: 0.191 m pulleys, 0.173 m offsets from starts up to 10 m off. Measured at 1 cm / 5 mrad
     vision over 10 seeds: 0.185 / 0.175 m; every run inside its own sigmas."""

@@ -14,6 +14,7 @@ from fusionkit_plugins.serial_arm.simulator import DRIFT_PARAMETER, drift_truth
 
 PARAMS = {"motion": "trajectory", "duration": 60.0, "rate": 5.0, "drift": {"change": 0.004}}
 SOLVERS = {"batch": {"type": "batch"}, "isam2": {"type": "isam2"}, "fixed_lag": {"type": "fixed_lag", "lag": 5.0}}
+pytestmark = pytest.mark.slow  # every test reads the three 60 s runs of one fixture (11 s)
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,6 @@ def drift_errors(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return est.series_t, values - drift_truth(PARAMS, est.series_t, start), np.ravel(est.sigma), values
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("solver, settled", [("batch", 0.0), ("isam2", 10.0), ("fixed_lag", 30.0)])
 def test_the_drifting_offset_is_tracked_to_a_twentieth_of_its_drift(runs, solver, settled):
     """rms error below 0.2 mrad (measured over seeds 2-4: 0.08-0.10 mrad) once `settled` s have passed -- the
