@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-SMALL = 1e-4  # rad: below it the closed forms are replaced by their Taylor series
+SMALL = 1e-2  # rad: below it the closed forms (cancelling: ~1e-7 relative at 1e-4) are replaced by their series to t^4
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -43,9 +43,10 @@ def _coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     t = np.where(theta < SMALL, 1.0, theta)
     t2 = theta ** 2
     small = theta < SMALL
-    a = np.where(small, 1 - t2 / 6, np.sin(t) / t)
-    b = np.where(small, 0.5 - t2 / 24, (1 - np.cos(t)) / t ** 2)
-    c = np.where(small, 1 / 6 - t2 / 120, (t - np.sin(t)) / t ** 3)
+    t4 = t2 * t2
+    a = np.where(small, 1 - t2 / 6 + t4 / 120, np.sin(t) / t)
+    b = np.where(small, 0.5 - t2 / 24 + t4 / 720, (1 - np.cos(t)) / t ** 2)
+    c = np.where(small, 1 / 6 - t2 / 120 + t4 / 5040, (t - np.sin(t)) / t ** 3)
     return a, b, c
 
 
@@ -68,7 +69,8 @@ def _so3_jr_inv(w: np.ndarray) -> np.ndarray:
     """Right Jacobian inverse of SO(3): I + W/2 + (1/t^2 - (1 + cos t)/(2 t sin t)) W^2."""
     theta = np.linalg.norm(w, axis=-1)[..., None, None]
     t = np.where(theta < SMALL, 1.0, theta)
-    k = np.where(theta < SMALL, 1 / 12 + theta ** 2 / 720, 1 / t ** 2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))
+    k = np.where(theta < SMALL, 1 / 12 + theta ** 2 / 720 + theta ** 4 / 30240,
+                 1 / t ** 2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))
     W = skew(w)
     return np.eye(3) + 0.5 * W + k * (W @ W)
 
@@ -80,11 +82,11 @@ def _q(xi: np.ndarray) -> np.ndarray:
     W, V = skew(w), skew(v)
     WV, VW = W @ V, V @ W
     WVW = WV @ W
-    small = theta < 1e-2
+    small = theta < SMALL
     t = np.where(small, 1.0, theta)
-    c1 = np.where(small, 1 / 6 - theta ** 2 / 120, (t - np.sin(t)) / t ** 3)
-    c2 = np.where(small, -1 / 24 + theta ** 2 / 720, (1 - t ** 2 / 2 - np.cos(t)) / t ** 4)
-    c3 = np.where(small, 1 / 120 - theta ** 2 / 2520,
+    c1 = np.where(small, 1 / 6 - theta ** 2 / 120 + theta ** 4 / 5040, (t - np.sin(t)) / t ** 3)
+    c2 = np.where(small, -1 / 24 + theta ** 2 / 720 - theta ** 4 / 40320, (1 - t ** 2 / 2 - np.cos(t)) / t ** 4)
+    c3 = np.where(small, 1 / 120 - theta ** 2 / 2520 + theta ** 4 / 120960,
                   -0.5 * ((1 - t ** 2 / 2 - np.cos(t)) / t ** 4 - 3 * (t - np.sin(t) - t ** 3 / 6) / t ** 5))
     return (-0.5 * V + c1 * (WV + VW - WVW) + c2 * (W @ WV + VW @ W - 3 * WVW)
             + c3 * (WVW @ W + W @ WVW))
@@ -152,7 +154,8 @@ def log(T: np.ndarray) -> np.ndarray:
     w = rotation_log(T[..., :3, :3])
     theta = np.linalg.norm(w, axis=-1)[..., None, None]
     t = np.where(theta < SMALL, 1.0, theta)
-    k = np.where(theta < SMALL, 1 / 12 + theta ** 2 / 720, 1 / t ** 2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))
+    k = np.where(theta < SMALL, 1 / 12 + theta ** 2 / 720 + theta ** 4 / 30240,
+                 1 / t ** 2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))
     W = skew(w)
     v = np.einsum("...ij,...j->...i", np.eye(3) - 0.5 * W + k * (W @ W), T[..., :3, 3])
     return np.concatenate([w, v], axis=-1)
