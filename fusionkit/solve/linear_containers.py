@@ -100,7 +100,7 @@ class LinearContainers:
                 entries.append(_entry(r, kind))
         if not entries and not self.slot:
             return out
-        theta, delta = solver.getLinearizationPoint(), solver.getDelta()
+        delta = solver.getDelta()
         moving = self.relinearizing(delta, [k for k, on in self.on_key.items() if on])
         for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
             entry = self.slot.pop(index)
@@ -110,7 +110,7 @@ class LinearContainers:
             entries.append(entry)
         if not entries:
             return out
-        at = self._linearization_point(theta, delta, moving)
+        at = self._linearization_point(solver.getLinearizationPoint(), delta, moving)  # a copy: only when needed
         at.insert(new_values)
         reader = ValueReader(at)
         by_group: dict[int, list[tuple]] = {}
