@@ -7,6 +7,8 @@ import statistics
 import time
 from typing import Any, Callable
 
+import numpy as np
+
 
 def timed(fn: Callable[[], Any]) -> tuple[Any, float]:
     """(result, seconds) of one call."""
@@ -30,6 +32,12 @@ def median_time(fn: Callable[[], Any], repeat: int = 5, warmup: int = 1) -> floa
         finally:
             gc.enable()
     return statistics.median(samples)
+
+
+def latency_percentiles(latency: np.ndarray) -> dict[str, float]:
+    """p50, p90, p99 and max of per-step latencies (in their unit), and how many steps."""
+    return {"steps": len(latency), "p50": float(np.percentile(latency, 50)), "p90": float(np.percentile(latency, 90)),
+            "p99": float(np.percentile(latency, 99)), "max": float(latency.max())}
 
 
 def median_of(runs: list[dict[str, float]]) -> dict[str, float]:

@@ -8,7 +8,6 @@ are computed and the median over runs is reported."""
 from __future__ import annotations
 
 import gc
-import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -20,7 +19,7 @@ import fusionkit
 from fusionkit.pipeline import estimate
 
 import chain
-from _timing import ms, table
+from _timing import latency_percentiles, median_of, ms, table
 
 
 def run_fusionkit(config_path: Path) -> dict:
@@ -68,11 +67,6 @@ def run_handwritten(folder: Path) -> dict:
             "total": end - tic_all, "steps": len(lat), "final_cost": graph.error(estimate_values)}
 
 
-def _pct(lat: np.ndarray) -> dict:
-    return {"p50": float(np.percentile(lat, 50)), "p90": float(np.percentile(lat, 90)),
-            "p99": float(np.percentile(lat, 99)), "max": float(lat.max())}
-
-
 def run(quick: bool = False) -> dict:
     n = 2000
     repeats = 3 if quick else 5
@@ -84,11 +78,11 @@ def run(quick: bool = False) -> dict:
             hw_runs.append(run_handwritten(Path(tmp)))
     med = {}
     for name, runs in (("fusionkit", fk_runs), ("hand-written", hw_runs)):
-        stats = [{**_pct(r["lat"]), **{k: r[k] for k in ("updates", "solve", "total")}} for r in runs]
-        med[name] = {k: statistics.median(s[k] for s in stats) for k in stats[0]}
+        stats = [{**latency_percentiles(r["lat"]), **{k: r[k] for k in ("updates", "solve", "total")}} for r in runs]
+        med[name] = median_of(stats)
         med[name]["steps"] = runs[0]["steps"]
         med[name]["final_cost"] = runs[0]["final_cost"]
-    update_only = {k: statistics.median(_pct(r["lat_update"])[k] for r in hw_runs) for k in ("p50", "p90", "p99", "max")}
+    update_only = median_of([latency_percentiles(r["lat_update"]) for r in hw_runs])
     med["hand-written"]["update_only"] = update_only
     rows = []
     for name, m in med.items():

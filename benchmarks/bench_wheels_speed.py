@@ -33,7 +33,7 @@ from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 
 from _baselines import hand_fixed_lag, problem_data
-from _timing import run_parts, table
+from _timing import latency_percentiles, median_of, run_parts, table
 
 CAMERA = {"type": "pose.absolute", "robot": "robot", "stream": "camera",
           "sigma": {"rotation": 0.02, "translation": 0.0028}}
@@ -112,11 +112,6 @@ def batch(quick: bool) -> tuple[str, dict]:
 ALTERNATIONS = 5  # preintegrated fixed-lag: runs of fusionkit and of the hand-written loop, alternating
 
 
-def _percentiles(latency_ms: np.ndarray) -> dict:
-    return {"steps": len(latency_ms), "p50_ms": float(np.percentile(latency_ms, 50)),
-            "p99_ms": float(np.percentile(latency_ms, 99)), "max_ms": float(latency_ms.max())}
-
-
 def fixed_lag(quick: bool) -> tuple[str, dict]:
     """Per step: the simulator's config plus the camera, started by dead reckoning; the intrinsics are
     ~0.04 m, so relinearize below 1e-4; with one update per step (one Gauss-Newton step) and with two.
@@ -145,10 +140,10 @@ def fixed_lag(quick: bool) -> tuple[str, dict]:
                 except SolverError as exc:
                     raw[name] = {"diverged": str(exc)}
                     break
-            ours.append(_percentiles(result.solution.step_latency * 1e3))
+            ours.append(latency_percentiles(result.solution.step_latency * 1e3))
             if runs > 1:
-                hand.append(_percentiles(hand_fixed_lag(*problem_data(result.problem),
-                                                        {"warmup": 5.0, **settings}) * 1e3))
+                hand.append(latency_percentiles(hand_fixed_lag(*problem_data(result.problem),
+                                                               {"warmup": 5.0, **settings}) * 1e3))
         if name in raw:
             rows.append([name, "-", "diverged", "", "", ""])
             continue
@@ -157,16 +152,16 @@ def fixed_lag(quick: bool) -> tuple[str, dict]:
                                                                         hand, "")):
             if not measured:
                 continue
-            row = {k: float(np.median([m[k] for m in measured])) for k in ("p50_ms", "p99_ms", "max_ms")}
-            raw[label.strip()] = {"steps": measured[0]["steps"], "runs": len(measured), **row,
-                                  "p99_ms_runs": [m["p99_ms"] for m in measured], **({"ate_m": ate} if ate_text else {})}
-            rows.append([label, measured[0]["steps"], len(measured), f"{row['p50_ms']:.3f}", f"{row['p99_ms']:.3f}",
-                         f"{row['max_ms']:.2f}", ate_text])
+            row = median_of(measured)  # ms
+            raw[label.strip()] = {"runs": len(measured), **row,
+                                  "p99_runs": [m["p99"] for m in measured], **({"ate_m": ate} if ate_text else {})}
+            rows.append([label, int(row["steps"]), len(measured), f"{row['p50']:.3f}", f"{row['p99']:.3f}", f"{row['max']:.2f}",
+                         ate_text])
     text = table(["variant", "steps", "runs", "p50 ms", "p99 ms", "max ms", "ATE m"], rows,
                  f"wheels fixed-lag (5 s batch warm-up): per-step latency over {duration:.0f} s (median over runs)")
     for name, d in raw.items():
         if d.get("runs", 1) > 1:
-            text += f"\n{name}: p99 of each run " + ", ".join(f"{v:.3f}" for v in d["p99_ms_runs"]) + " ms"
+            text += f"\n{name}: p99 of each run " + ", ".join(f"{v:.3f}" for v in d["p99_runs"]) + " ms"
     return text, raw
 
 
@@ -186,9 +181,9 @@ def summary(results: dict) -> list[str]:
     for name, d in fixed.items():
         if name.startswith("hand-written"):
             continue
-        line = "diverged" if "diverged" in d else f"p99 {d['p99_ms']:.2f} ms per step"
+        line = "diverged" if "diverged" in d else f"p99 {d['p99']:.2f} ms per step"
         if hand and name.startswith("preintegrated") and "diverged" not in d:
-            line += f" ({d['p99_ms'] / hand['p99_ms']:.2f}x the hand-written loop's {hand['p99_ms']:.2f} ms)"
+            line += f" ({d['p99'] / hand['p99']:.2f}x the hand-written loop's {hand['p99']:.2f} ms)"
         lines.append(f"wheels fixed-lag {name}: {line}")
     return lines
 
