@@ -80,8 +80,10 @@ def cmd_validate(args) -> int:
     config = load_config(args.config, args.set)
     streams, _ = read_sources(config)
     problem = build_problem(config, streams)
-    check_constrained(problem, problem.graph(), *linear_settings(config.solver))
+    checked = check_constrained(problem, problem.graph(), *linear_settings(config.solver))
     print(f"{args.config}: OK")
+    if checked.warning:
+        print(f"  warning [ill_conditioned]: {checked.warning}")
     for name, s in streams.items():
         print(f"  stream {name}: {len(s)} samples, t = {s.t[0]:.3f} .. {s.t[-1]:.3f} s, columns {', '.join(s.columns)}")
     for robot, states in problem.states.items():

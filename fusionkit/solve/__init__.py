@@ -9,7 +9,7 @@ from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
 from .covariance_recovery import recovered_marginals, tree_marginals
-from .factorization import linear_settings, resolved_ordering
+from .factorization import resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
 
@@ -49,7 +49,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     if settings["marginals"] and kind != "fixed_lag":
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
-        if kind == "batch" and linear_settings(settings)[0]:
+        if kind == "batch" and result.factorization == "qr":
             result.covariances = recovered_marginals(problem.evaluator(), result.values, marginal_keys, settings["ordering"])
         else:
             result.covariances = marginal_covariances(problem, result, marginal_keys)

@@ -13,7 +13,7 @@ from ..graph.builder import Problem
 from .checks import check_constrained, unconstrained_message
 from .factorization import linear_settings
 from .levenberg import DampingSettings, levenberg_marquardt
-from .result import SolveResult
+from .result import SolveResult, SolveWarning
 
 
 def _dogleg(graph, initial, rtol, atol, max_iterations, progress, qr, ordering):
@@ -41,7 +41,8 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
     """Iterate the chosen method until the relative/absolute cost decrease is below tolerance."""
     graph = problem.graph()
     qr, ordering = linear_settings(settings)
-    first = check_constrained(problem, graph, qr, ordering)  # the first LM/GN step reuses its elimination
+    checked = check_constrained(problem, graph, qr, ordering)  # the first LM/GN step reuses its elimination
+    qr = checked.qr  # QR where Cholesky failed on a determinate system
     method = settings["method"]
     rtol, atol = settings["relative_tolerance"], settings["absolute_tolerance"]
     max_iterations = settings["max_iterations"]
@@ -52,12 +53,15 @@ def solve_batch(problem: Problem, settings: dict, progress: Callable[[int, float
         else:
             damping = DampingSettings.of(settings) if method == "lm" else None
             values, history = levenberg_marquardt(problem.evaluator(), problem.initial, rtol, atol, max_iterations, damping,
-                                                  progress, qr, ordering, first)
+                                                  progress, qr, ordering, checked.first)
     except RuntimeError as exc:
         msg = unconstrained_message(problem, exc)
         if msg is None:
             raise
         raise SolverError(msg) from None
     seconds = time.perf_counter() - start
-    return SolveResult(values, f"batch-{method}", history[0], history[-1], len(history) - 1, seconds,
-                       history=history)
+    result = SolveResult(values, f"batch-{method}", history[0], history[-1], len(history) - 1, seconds,
+                         history=history, factorization="qr" if qr else "cholesky")
+    if checked.warning:
+        result.warnings.append(SolveWarning("ill_conditioned", checked.warning))
+    return result

@@ -3,70 +3,92 @@
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from ..errors import SolverError
 from ..graph.builder import Problem
-from .factorization import eliminate
+from .factorization import eliminate, elimination_order
+from .rank import CHOLESKY_SUSPECT, RANK_TOLERANCE, rank_check, smallest_ratio, unconstrained_text
 
 _KEY_IN_MESSAGE = re.compile(r"near variable\s+(\d+)")
 
 
-def _indeterminate_key(exc: Exception) -> int | None:
+def unconstrained_message(problem: Problem, exc: Exception) -> str | None:
+    """GTSAM's indeterminate-system error raised during a solve (after check_constrained passed at the initial
+    values) as a sentence naming the variable GTSAM names; None for other errors."""
     m = _KEY_IN_MESSAGE.search(str(exc))
-    return int(m.group(1)) if m else None
-
-
-def unconstrained_message(problem: Problem, exc: Exception, key: int | None = None) -> str | None:
-    """Turn GTSAM's indeterminate-system error into a sentence naming the variable (`key` if given)."""
-    key = _indeterminate_key(exc) if key is None else key
-    if key is None:
+    if m is None:
         return None
-    name = problem.keys.name_of(key)
-    return (f"variable {name} is not constrained by the factors (the system is indeterminate near it): "
-            "add a prior or a measurement that fixes it, e.g. a pose.origin or pose.absolute factor for "
-            "the first pose, or a prior sigma for a calibration parameter; or improve the initial values (a "
-            "redescending robust kernel such as tukey gives no weight to residuals beyond its cutoff)")
+    return (f"GTSAM found the linear system indeterminate near variable {problem.keys.name_of(int(m.group(1)))} "
+            "during the solve (the system at the initial values is determinate: a later linearization point lost "
+            "a constraint, or Cholesky lost the digits): try solver.factorization: qr, better initial values, or "
+            "a prior on that variable; a redescending robust kernel such as tukey gives no weight to residuals "
+            "beyond its cutoff")
 
 
-def _first_of_family(problem: Problem, linear: gtsam.GaussianFactorGraph, key: int) -> int:
-    """GTSAM names the variable it eliminated last, often the far end of a floating chain (cam/pose[148]).
-    When the family's first variable (cam/pose[0]) is indeterminate too, name that one instead."""
-    try:
-        family, index = problem.keys.decode(key)
-    except KeyError:
-        return key
-    first = family.key(0)
-    if index == 0 or not problem.initial.exists(first):
-        return key
-    try:
-        linear.eliminateSequential(gtsam.Ordering.ColamdConstrainedLastGaussianFactorGraph(linear, [first]))
-    except RuntimeError as exc:
-        if _indeterminate_key(exc) == first:
-            return first
-    return key
+@dataclass
+class CheckedSystem:
+    """The system linearized at the initial values and eliminated (a batch solver's first step reuses both), by
+    the factorization the solve is to use: QR where Cholesky failed on a determinate system (`warning` says so)."""
+
+    linear: gtsam.GaussianFactorGraph
+    tree: gtsam.GaussianBayesTree
+    qr: bool
+    warning: str | None = None
+
+    @property
+    def first(self) -> tuple[gtsam.GaussianFactorGraph, gtsam.GaussianBayesTree]:
+        return self.linear, self.tree
+
+
+def _indeterminate(exc: RuntimeError) -> bool:
+    return _KEY_IN_MESSAGE.search(str(exc)) is not None
 
 
 def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False,
-                      ordering: str = "colamd") -> tuple[gtsam.GaussianFactorGraph, gtsam.GaussianBayesTree]:
-    """Every variable must appear in a factor, and the linearized system must be determinate
-    (to Cholesky, or with `qr` to QR elimination). Returns the system linearized at the initial values
-    and its elimination, which a batch solver's first step reuses."""
+                      ordering: str = "colamd") -> CheckedSystem:
+    """Every variable must appear in a factor, and the whitened Jacobian at the initial values must have full
+    rank, whatever the factorization (solve/rank.py): a direction no factor constrains is a SolverError naming
+    the variables that move in it. Cholesky (`qr` False) that fails, or keeps too few digits, on a system of full
+    rank is ill-conditioning, not a missing constraint: the solve then uses QR, and `warning` says so."""
     used = set(graph.keyVector())
     for key in problem.initial.keys():
         if key not in used:
             raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor: add a factor that "
                               "measures it, or remove what declares it")
     linear = problem.evaluator().linearize(problem.initial)
+    order = elimination_order(linear, ordering)
     try:
-        return linear, eliminate(linear, qr, ordering)
+        tree = eliminate(linear, qr, order)
     except RuntimeError as exc:
-        key = _indeterminate_key(exc)
-        if key is None:
+        if not _indeterminate(exc):
             raise
-        raise SolverError(unconstrained_message(problem, exc, _first_of_family(problem, linear, key))) from None
+        tree = None
+    if not qr and tree is not None and smallest_ratio(tree, linear, problem.initial) >= CHOLESKY_SUSPECT:
+        return CheckedSystem(linear, tree, False)
+    rank = rank_check(linear, problem.initial, tree if qr else None, order)
+    if rank.deficiency:
+        raise SolverError(unconstrained_text(problem.keys, rank, problem.initial.keys()))
+    try:
+        qr_tree = tree if qr and tree is not None else eliminate(linear, True, order)
+    except RuntimeError as exc:
+        if not _indeterminate(exc):
+            raise
+        raise SolverError(f"GTSAM's QR found the system at the initial values indeterminate, but no direction of the "
+                          f"whitened Jacobian is free to {RANK_TOLERANCE:g} (smallest column-scaled ratio "
+                          f"{rank.smallest_ratio:.2g}): {unconstrained_message(problem, exc)}") from None
+    if qr:
+        return CheckedSystem(linear, qr_tree, True)
+    what = ("declared the system indeterminate" if tree is None
+            else "kept too few digits of it (it factors A^T A, squaring the condition number)")
+    return CheckedSystem(linear, qr_tree, True, (
+        f"GTSAM's Cholesky {what}, but the whitened Jacobian has full rank: ill-conditioned, not unconstrained "
+        f"(condition number at least {rank.condition:.2g} in the variables' units, {1 / rank.smallest_ratio:.2g} "
+        "with every column scaled to one); solved by QR instead; set solver.factorization: qr to skip the "
+        "attempt, and check the sigmas if one is much tighter than its sensor"))
 
 
 def residual_dimension(graph: gtsam.NonlinearFactorGraph) -> int:

@@ -30,7 +30,7 @@ from ..graph.keys import STATE
 from .checks import check_constrained, unconstrained_message
 from .covariance_recovery import tree_marginals
 from .linear_containers import LinearContainers
-from .result import SolveResult
+from .result import SolveResult, SolveWarning
 
 
 def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
@@ -95,8 +95,9 @@ def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
     msg = unconstrained_message(problem, exc)
     if msg is None:
         raise exc
-    raise SolverError(f"{msg} (while adding the measurements at t={t:.3f} s incrementally: "
-                      "static parameters need a prior until the data constrain them)") from None
+    raise SolverError(f"{msg} (while adding the measurements at t={t:.3f} s incrementally: a variable the whole "
+                      "graph constrains may not be constrained yet by the measurements so far; static parameters "
+                      "need a prior until the data constrain them, or solver.warmup)") from None
 
 
 def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values]) -> tuple[gtsam.Values, float]:
@@ -174,13 +175,21 @@ def new_values(problem: Problem, settings: dict, keys: list[int], estimate: gtsa
     return value_subset(problem, keys)
 
 
+def _checked(problem: Problem, settings: dict) -> tuple[dict, list[SolveWarning]]:
+    """check_constrained with the configured factorization; the settings with QR where Cholesky failed on a
+    determinate system, and the warning that says so."""
+    checked = check_constrained(problem, problem.graph(), settings["factorization"] == "qr")
+    if checked.warning is None:
+        return settings, []
+    return {**settings, "factorization": "qr"}, [SolveWarning("ill_conditioned", checked.warning)]
+
+
 def _containers(problem: Problem, settings: dict) -> LinearContainers:
     return LinearContainers(settings["relinearize_threshold"], lambda k: problem.keys.decode(k)[0].vartype)
 
 
 def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
-    graph = problem.graph()
-    check_constrained(problem, graph)
+    settings, warnings = _checked(problem, settings)
     isam = gtsam.ISAM2(_isam2_params(settings))
     containers = _containers(problem, settings)
     latency = []
@@ -202,7 +211,7 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     cost = problem.evaluator().error
     return SolveResult(estimate, "isam2", cost(problem.initial), cost(estimate), len(latency),
                        seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance,
-                       warmup_seconds=warmup)
+                       warmup_seconds=warmup, factorization=settings["factorization"], warnings=warnings)
 
 
 def solve_fixed_lag(problem: Problem, settings: dict,
@@ -211,8 +220,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     """IncrementalFixedLagSmoother with `lag` seconds. Static variables are re-stamped at every
     update so they stay in the window; each state keeps the estimate (and covariance, for
     `marginal_keys`) it had when it left the window."""
-    graph = problem.graph()
-    check_constrained(problem, graph)
+    settings, warnings = _checked(problem, settings)
     lag = float(settings["lag"])
     smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(settings))
     containers = _containers(problem, settings)
@@ -284,4 +292,5 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     seconds = time.perf_counter() - start
     cost = problem.evaluator().error
     return SolveResult(estimate, "fixed_lag", cost(problem.initial), cost(estimate), len(latency),
-                       seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup)
+                       seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup,
+                       factorization=settings["factorization"], warnings=warnings)

@@ -49,7 +49,13 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
     qr, ordering = (solver["factorization"] == "qr", resolved_ordering(solver["ordering"], evaluator.largest_degree())) \
         if solver else (False, "colamd")
     linear = evaluator.linearize(values)
-    clique_of, joint = clique_covariances(eliminate(linear, qr, ordering), values)
+    try:
+        tree = eliminate(linear, qr, ordering)
+    except RuntimeError:  # Cholesky on an ill-conditioned system (rank.py): QR, as the solve itself falls back to
+        if qr:
+            raise
+        tree = eliminate(linear, True, ordering)
+    clique_of, joint = clique_covariances(tree, values)
     of_record = dict(zip(evaluator.linear_order(), range(linear.size())))  # each record's linear factor
     errors = evaluator.record_errors(values)
     fits = {label: EntryFit() for label in labels}

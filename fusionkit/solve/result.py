@@ -10,6 +10,26 @@ import numpy as np
 
 
 @dataclass
+class SolveWarning:
+    """A check that needs no ground truth found something a user must see (report.json `warnings`, the summary):
+    `name` says which check, `span` the time in seconds it concerns, if any."""
+
+    name: str
+    message: str
+    span: tuple[float, float] | None = None
+
+    def to_json(self) -> dict:
+        out = {"name": self.name, "message": self.message}
+        if self.span is not None:
+            out["t_start"], out["t_end"] = float(self.span[0]), float(self.span[1])
+        return out
+
+    def text(self) -> str:
+        where = "" if self.span is None else f" (t = {self.span[0]:.2f} .. {self.span[1]:.2f} s)"
+        return f"warning [{self.name}]{where}: {self.message}"
+
+
+@dataclass
 class SolveResult:
     values: gtsam.Values
     solver: str
@@ -26,6 +46,8 @@ class SolveResult:
     rejection: str | None = None  # why the chi-square gate refused the solution; None: accepted
     sigmas_scaled: bool = False  # covariances multiplied by sigma0^2 (solver.a_posteriori_sigmas)
     noise_scales: dict[str, dict] | None = None  # `noise_scale: estimate` entries (solve/noise_scales.py)
+    factorization: str = "cholesky"  # the one the solve used (QR where Cholesky failed on a determinate system)
+    warnings: list[SolveWarning] = field(default_factory=list)
 
     @property
     def sigma0(self) -> float | None:
@@ -36,7 +58,8 @@ class SolveResult:
         out = {"solver": self.solver, "iterations": self.iterations, "seconds": self.seconds,
                "initial_cost": self.initial_error, "final_cost": self.final_error,
                "cost_history": self.history, "status": "rejected" if self.rejection else "accepted",
-               "chi2_per_dof": self.chi2_per_dof, "sigma0": self.sigma0, "sigmas_scaled_by_sigma0": self.sigmas_scaled}
+               "chi2_per_dof": self.chi2_per_dof, "sigma0": self.sigma0, "sigmas_scaled_by_sigma0": self.sigmas_scaled,
+               "factorization": self.factorization, "warnings": [w.to_json() for w in self.warnings]}
         if self.rejection:
             out["rejection"] = self.rejection
         if self.noise_scales:

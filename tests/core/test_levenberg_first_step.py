@@ -24,7 +24,7 @@ def problem():
                                                     (False, "metis", DampingSettings())])
 def test_reusing_the_checks_elimination_changes_no_iterate(problem, qr, ordering, damping):
     graph = problem.evaluator()
-    first = check_constrained(problem, problem.graph(), qr, ordering)
+    first = check_constrained(problem, problem.graph(), qr, ordering).first
     reused, history = levenberg_marquardt(graph, problem.initial, 1e-6, 1e-9, 100, damping, None, qr, ordering, first)
     again, history_again = levenberg_marquardt(graph, problem.initial, 1e-6, 1e-9, 100, damping, None, qr, ordering)
     assert history == history_again and len(history) > 2
