@@ -117,10 +117,20 @@ def over_read(e: float, sigma: float, direction: int, k: float) -> tuple[float, 
     sigma > 0 means the wheel turned further than the motion explains (spinning, slipping, climbing).
     Over-runs cost the Cauchy loss (k^2/2) log(1 + u^2/k^2), everything else u^2/2; the residual is
     returned as sigma * sqrt(2 cost) with the original sign, so its square is the cost. Returns (the
-    residual, d residual / d e)."""
+    residual, d residual / d e).
+
+    With q = u / k: rho = k sqrt(log(1 + q^2)) and d residual / d e = u / ((1 + q^2) rho). Beyond q = 1 both
+    are written in r = 1/q (log(1 + q^2) = 2 log q + log(1 + r^2), u / (1 + q^2) = k r / (1 + r^2)), so no
+    q^2 is formed: it overflows for q above 1e154 (a solver far from the data, e.g. an incremental one
+    that diverged), where the loss itself is a modest 2 k^2 log q."""
+    sigma = float(sigma)  # plain float arithmetic (a numpy scalar sigma would make every step below numpy's)
     u = -direction * e / sigma
     if u <= 1e-6:  # (the loss is u^2/2 to 1e-12 relative below this)
         return e, 1.0
     q = u / k
-    rho = k * math.sqrt(math.log1p(q * q))
-    return -direction * sigma * rho, u / ((1.0 + q * q) * rho)
+    if q <= 1.0:
+        rho = k * math.sqrt(math.log1p(q * q))
+        return -direction * sigma * rho, u / ((1.0 + q * q) * rho)
+    r = 1.0 / q
+    rho = k * math.sqrt(2.0 * math.log(q) + math.log1p(r * r))
+    return -direction * sigma * rho, k * r / ((1.0 + r * r) * rho)

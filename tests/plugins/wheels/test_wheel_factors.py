@@ -4,13 +4,17 @@ GTSAM's own Pose2 maps; the factor contract for every wheels factor type."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import gtsam
 import numpy as np
 import pytest
 
 from fusionkit.plugins import registry
+from fusionkit.api import gaussian
 from fusionkit.testing import check_factor_contract
+from fusionkit.testing.jacobians import numerical_jacobians
+from fusionkit_plugins.wheels.factors import encoder_factor
 from fusionkit_plugins.wheels.preintegration import preintegrate
 from fusionkit_plugins.wheels.residuals import Arc, encoder_residual, gyro_residual, lateral_residual, over_read
 
@@ -64,6 +68,39 @@ def test_over_read_loss_is_gaussian_below_the_motion_and_cauchy_above():
     assert w == pytest.approx((over_read(-0.05 + h, sigma, 1, k)[0] - over_read(-0.05 - h, sigma, 1, k)[0]) / (2 * h),
                               rel=1e-6)
     assert over_read(-1e-9, sigma, 1, k)[0] == pytest.approx(-1e-9)  # continuous at zero
+
+
+@pytest.mark.parametrize("u", [0.5, 1.0 - 1e-9, 1.0 + 1e-9, 7.0, 1e10, 1e160, 1e300])
+def test_over_read_stays_finite_and_exact_without_numpy_warnings_far_beyond_the_motion(u):
+    """An encoder reading u sigmas beyond the motion (u = 1e160: an incremental solve gone astray) with a numpy
+    sigma, as the factors pass it: (u / k)^2 overflowed there (RuntimeWarning, residual inf, weight 0)."""
+    sigma, k = np.float64(0.0075), 3.0
+    e = -u * float(sigma)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r, w = over_read(e, sigma, 1, k)
+        h = 1e-6 * abs(e)
+        numeric = (over_read(e + h, sigma, 1, k)[0] - over_read(e - h, sigma, 1, k)[0]) / (2 * h)
+    assert math.isfinite(r) and r < 0 and 0.0 < w <= 1.0
+    assert (r / sigma) ** 2 / 2 == pytest.approx(k ** 2 * (math.log(u / k) + 0.5 * math.log1p((k / u) ** 2)), rel=1e-12)
+    assert w == pytest.approx(numeric, rel=1e-6)
+
+
+def test_encoder_factor_far_from_its_reading_raises_no_warning_and_its_jacobians_match_differences():
+    """The whole wheels.encoder factor (over_read on, numpy sigma) with the second pose 1e158 m away: finite
+    whitened error, no RuntimeWarning, analytic Jacobians equal central differences."""
+    sigma = np.float64(0.0075)
+    values = gtsam.Values()
+    for key, v in enumerate((gtsam.Pose2(0.0, 0.0, 0.1), gtsam.Pose2(1e158, 2e157, 0.3), 0.05, 0.4)):
+        values.insert(key, v)
+    factor = encoder_factor([0, 1, 2, 3], 0.5, 1.0, gaussian([sigma]), sigma, 3.0, -1, True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        error = factor.whitenedError(values)
+        analytic = factor.linearize(values).jacobian()[0]
+        numeric = np.hstack(numerical_jacobians(factor, values, step=1e-6))
+    assert np.all(np.isfinite(error)) and np.all(np.isfinite(analytic))
+    np.testing.assert_allclose(analytic, numeric, rtol=1e-5, atol=1e-9)
 
 
 def _composed(window, left, right, theta):
