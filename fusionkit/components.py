@@ -196,6 +196,13 @@ class RobotModel(Component):
     def check_description(self, desc: "RobotDescription") -> None:
         """Semantic checks of a description after its schema passed (raise `desc.error(...)`)."""
 
+    def element_names(self, desc: "RobotDescription", parameter: str) -> list[str] | None:
+        """Names of the elements of the indexed parameter `parameter` (one per value, distinct), when the
+        model has them: a serial arm names its joint offsets by joint, so the summary, report.json,
+        calibration.yaml and every message say `joint_offsets[elbow_joint]`, not `joint_offsets[2]`.
+        Called after `check_description`. Default: None (elements go by index)."""
+        return None
+
     def outputs(self, robot: str, calibrated: "RobotDescription") -> dict[str, str | bytes]:
         """Files `fusionkit run` writes for robot `robot` into its output folder: {path relative to the
         folder, `/`-separated (e.g. `robots/arm.urdf`): text or bytes}. `calibrated` is the robot's

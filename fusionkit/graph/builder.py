@@ -68,6 +68,16 @@ class FactorRecord:
     part: str | None = None  # a named part of the entry with the plugin's own noise (`ctx.add(..., part=)`)
 
 
+@dataclass(frozen=True)
+class Held:
+    """Tangent axes of a variable a factor holds at a value the data do not determine (`BuildContext.hold`):
+    reports print `held (reason)` for them, not the value and the hold's tiny sigma."""
+
+    axes: tuple[int, ...]  # tangent axes, ascending
+    reason: str            # e.g. "not identifiable with base.rz"
+    labels: tuple[str, ...] = ()  # the axes' names (`tx`), one per axis; () for a scalar
+
+
 @dataclass
 class Problem:
     """Everything the solver needs, plus what reports need to name things."""
@@ -84,6 +94,7 @@ class Problem:
     value_source: dict[str, str] = field(default_factory=dict)  # value-less parameter -> its initializer
     measurement_states: MeasurementStates | None = None  # entries with a time offset (time_offset/)
     context: "BuildContext | None" = None  # what built it: factor types' review() after solving reads it
+    held: dict[int, Held] = field(default_factory=dict)  # key -> the axes a factor holds (BuildContext.hold)
     _graph: gtsam.NonlinearFactorGraph | None = None
     _evaluator: GraphEvaluator | None = None
 
@@ -123,6 +134,7 @@ class BuildContext:
         self.plots: dict[str, Callable[[Path], None]] = {}
         self.states: dict[str, StateSet] = {}
         self.fixed_keys: set[int] = set()
+        self.held: dict[int, Held] = {}
         self.awaiting_value: dict[int, list[str]] = {}  # [robot, parameter] the description gives no value
         self.value_source: dict[str, str] = {}  # such a parameter's name -> the initializer that set it
         self.current_initializer = ""
@@ -237,14 +249,14 @@ class BuildContext:
                 raise ValueError(f"{robot}/{name} is time-varying: pass the state index k")
             k = self.state_index(robot, k)
             fam = self.keys.family(robot, name if not param.indexed else f"{name}[{i}]",
-                                   param.vartype, TIME_VARYING)
+                                   param.vartype, TIME_VARYING, shown=param.element(index))
             key = fam.key(k)
             new = key not in self.key_time
             self._declare(key, param.values[i], self.state_time(robot, k))
             if new and k == 0:
                 self._prior(param, i, key, f"prior:{robot}/{name}", self.state_time(robot, 0))
             return key
-        fam = self.keys.family(robot, name, param.vartype, STATIC, indexed=param.indexed)
+        fam = self.keys.family(robot, name, param.vartype, STATIC, indexed=param.indexed, elements=param.elements)
         key = fam.key(i)
         if key not in self.key_time:
             self._declare(key, param.values[i], STATIC_TIME)
@@ -357,6 +369,23 @@ class BuildContext:
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
         self.records.append(FactorRecord(factor, label, time))
 
+    def hold(self, key: int, axes, reason: str, labels=()) -> None:
+        """Say that tangent `axes` of variable `key` are held by a factor of the plugin's (a tight prior at a
+        nominal value: e.g. a parameter the data cannot identify), and why (`reason`, e.g. "not identifiable
+        with base.rz"); `labels` name the axes (`tx`). The summary and report.html then print the element as
+        `held (reason)` instead of its value and the hold's sigma. Holding more axes of the key adds them."""
+        axes, labels = [int(a) for a in axes], [str(x) for x in labels]
+        if labels and len(labels) != len(axes):
+            raise PluginError(f"ctx.hold: {len(labels)} labels for {len(axes)} axes of {self.keys.name_of(key)}")
+        before = self.held.get(key)
+        if before is not None:
+            named = dict(zip(before.axes, before.labels or [""] * len(before.axes)))
+            named.update(zip(axes, labels or [""] * len(axes)))
+            axes, labels = list(named), list(named.values()) if all(named.values()) else []
+            reason = before.reason if reason == before.reason else f"{before.reason}; {reason}"
+        order = sorted(range(len(axes)), key=axes.__getitem__)
+        self.held[key] = Held(tuple(axes[i] for i in order), reason, tuple(labels[i] for i in order) if labels else ())
+
     def associate(self, stream: Stream, robot: str, tolerance: float | Spec, spec: Spec | None = None) -> Association:
         """Nearest-stamp association of `stream` rows with the robot's states; counts what is left.
         `associate(stream, robot, spec)`: within the entry's `tolerance` (s; its schema declares the key
@@ -382,7 +411,7 @@ class BuildContext:
     def problem(self) -> Problem:
         return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
                        self.notes + self._unused_notes(), self.diagnostics, self.plots, self.fixed_keys,
-                       self.value_source, self.measurement_states, self)
+                       self.value_source, self.measurement_states, self, self.held)
 
     def require_values(self) -> None:
         """After the initializers: every parameter the description gives no value must have one now."""

@@ -24,6 +24,8 @@ class Family:
     vartype: VarType
     kind: str
     indexed: bool = True
+    elements: tuple[str, ...] | None = None  # names of the indices (a parameter's `Parameter.elements`)
+    shown: str = ""  # the name printed, if not `name` (an element's own time-varying family: `offset[elbow_joint]`)
 
     def key(self, index: int = 0) -> int:
         return (self.id << INDEX_BITS) | int(index)
@@ -33,8 +35,11 @@ class Family:
         return ((self.id << INDEX_BITS) | np.asarray(indices, dtype=np.int64)).tolist()
 
     def label(self, index: int | None = None) -> str:
-        base = f"{self.robot}/{self.name}"
-        return base if index is None else f"{base}[{index}]"
+        """`cam/pose[12]`, `arm/joint_offsets[elbow_joint]` (named elements), `cam/vo_scale` (no index)."""
+        base = f"{self.robot}/{self.shown or self.name}"
+        if index is None:
+            return base
+        return f"{base}[{self.elements[index] if self.elements and 0 <= index < len(self.elements) else index}]"
 
 
 class KeyRegistry:
@@ -45,8 +50,9 @@ class KeyRegistry:
         self._by_id: dict[int, Family] = {}
 
     def family(self, robot: str, name: str, vartype: VarType, kind: str,
-               indexed: bool = True) -> Family:
-        """Declare (or fetch) a family; declaring it twice with another type is an error."""
+               indexed: bool = True, elements: tuple[str, ...] | None = None, shown: str = "") -> Family:
+        """Declare (or fetch) a family; declaring it twice with another type is an error. `elements` and
+        `shown`: how labels name its indices and itself (Family), taken from the first declaration."""
         found = self._families.get((robot, name))
         if found is not None:
             if found.vartype.name != vartype.name or found.kind != kind:
@@ -54,7 +60,7 @@ class KeyRegistry:
                     f"variable {robot}/{name} declared as {found.kind} {found.vartype.name} "
                     f"and again as {kind} {vartype.name}")
             return found
-        fam = Family(len(self._families) + 1, robot, name, vartype, kind, indexed)
+        fam = Family(len(self._families) + 1, robot, name, vartype, kind, indexed, elements, shown)
         self._families[(robot, name)] = fam
         self._by_id[fam.id] = fam
         return fam

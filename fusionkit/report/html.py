@@ -11,7 +11,7 @@ from pathlib import Path
 from .. import __version__
 from ..pipeline import RunResult
 from ..solve.noise_scales import scale_text
-from .summary import format_value
+from .summary import parameter_rows
 
 STYLE = """body{font-family:system-ui,sans-serif;margin:2em auto;max-width:70em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
@@ -20,10 +20,11 @@ th{background:#f3f3f3}.bad{color:#b00;font-weight:bold}.small{color:#666;font-si
 img{max-width:100%;border:1px solid #ddd;margin:.5em 0}li{margin:.2em 0}"""
 
 
-def _table(head: list[str], rows: list[list[str]]) -> str:
-    cells = "".join(f"<th>{escape(h)}</th>" for h in head)
+def _table(head: list[str] | None, rows: list[list[str]]) -> str:
+    """A table with the column titles `head` (None: a two-column list of name and value, no title row)."""
+    cells = "" if head is None else "<tr>" + "".join(f"<th>{escape(h)}</th>" for h in head) + "</tr>"
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
-    return f"<table><tr>{cells}</tr>{body}</table>"
+    return f"<table>{cells}{body}</table>"
 
 
 def _solver(result: RunResult) -> str:
@@ -39,49 +40,50 @@ def _solver(result: RunResult) -> str:
     latency = s.stats().get("step_latency_ms")
     if latency:
         rows.append(["per-step latency", f"p50 {latency['p50']:.3f} ms, p99 {latency['p99']:.3f} ms"])
-    return _table(["", ""], rows)
+    return _table(None, rows)
 
 
 def _parameters(result: RunResult) -> str:
+    """The summary's parameter rows (summary.parameter_rows) with their errors against truth: an error in the
+    estimate's unit (the description's `unit:` beside it where it gives one), error / sigma per tangent axis."""
     errors = result.evaluation.get("parameters", {})
     rows = []
-    for robot, params in result.parameters.items():
-        for name, est in params.items():
-            if est.series_t is not None:  # time-varying: its last value (report.json has the series)
-                vt = est.family.vartype
-                last = format_value(vt.to_list(est.values[-1]), None if est.sigma is None else est.sigma[-1], vt.name)
-                rows.append([escape(f"{robot}/{name}"), escape(f"{last} (time-varying, last of {len(est.values)}; "
-                                                              "the series is in report.json)"), "", ""])
-                continue
-            err = errors.get(robot, {}).get(name, {})
-            for i, v in enumerate(est.values):
-                label = f"{robot}/{name}" + (f"[{i}]" if len(est.values) > 1 else "")
-                vt = est.family.vartype
-                value = format_value(vt.to_list(v), None if est.sigma is None else est.sigma[i], vt.name)
-                truth = f"{err['abs_error'][i]:.3g}" if "abs_error" in err else ""
-                if "aligned_abs_error" in err:
-                    truth += f" (aligned {err['aligned_abs_error'][i]:.3g})"
-                z = err.get("z_per_axis")
-                zs = ", ".join(f"{x:+.2f}" for x in z[i]) if z else ""
-                rows.append([escape(label), escape(value), truth, zs])
+    for row in parameter_rows(result):
+        err = {} if row.series else errors.get(row.robot, {}).get(row.name, {})
+        unit = _unit(result, row.robot, row.name)
+        truth = f"{err['abs_error'][row.index]:.3g}{unit}" if "abs_error" in err else "-"
+        if "aligned_abs_error" in err:
+            truth += f" (aligned {err['aligned_abs_error'][row.index]:.3g}{unit})"
+        z = err.get("z_per_axis")
+        zs = ", ".join(f"{x:+.2f}" for x in z[row.index]) if z else "-"
+        rows.append([escape(row.label), escape(row.text), escape(truth), zs])
     if not rows:
-        return "<p>No static parameters estimated.</p>"
-    return _table(["parameter", "estimate ± 1-sigma", "error vs truth", "error / sigma"], rows)
+        return "<p>No parameters estimated.</p>"
+    return _table(["parameter", "estimate ± 1-sigma", "error vs truth (unit of the estimate; poses: rad and m)",
+                   "error / sigma (per axis, no unit)"], rows) + (
+        "<p class=small>The error of a pose (rotation) is the norm of its tangent-space error, rad and m together; "
+        "time-varying parameters are summed up (first, last, range), report.json has their series.</p>")
+
+
+def _unit(result: RunResult, robot: str, name: str) -> str:
+    setup = result.config.robots.get(robot)
+    param = None if setup is None else setup.description.parameters.get(name.split("[")[0])
+    return f" {param.unit}" if param is not None and param.unit else ""
 
 
 def _trajectories(result: RunResult) -> str:
     rows = []
     for robot, ev in result.evaluation.get("trajectories", {}).items():
-        ate = f"{ev['ate_rmse_m']:.4f} m (align {escape(ev['align'])})" if "ate_rmse_m" in ev else "-"
-        rpe = (f"{ev['rpe_translation_rmse_m']:.4f} m / {ev['rpe_rotation_rmse_deg']:.3f} deg"
+        ate = f"{ev['ate_rmse_m']:.4f} (align {escape(ev['align'])})" if "ate_rmse_m" in ev else "-"
+        rpe = (f"{ev['rpe_translation_rmse_m']:.4f} / {ev['rpe_rotation_rmse_deg']:.3f}"
                if "rpe_translation_rmse_m" in ev else "-")
         c = ev.get("consistency_percent")
-        within = "; ".join(f"{ax} {c[ax]['1sigma']:.0f}/{c[ax]['2sigma']:.0f}/{c[ax]['3sigma']:.0f} %" for ax in c) if c else "-"
+        within = "; ".join(f"{ax} {c[ax]['1sigma']:.0f}/{c[ax]['2sigma']:.0f}/{c[ax]['3sigma']:.0f}" for ax in c) if c else "-"
         rows.append([escape(robot), f"{ev['matched_poses']} of {ev['states']}", ate, rpe, within])
     if not rows:
         return "<p>No ground truth trajectory: no trajectory errors.</p>"
-    return _table(["robot", "states matched to truth", "ATE RMSE", "RPE per step", "inside 1/2/3 sigma (ideal 68/95/99.7)"],
-                  rows)
+    return _table(["robot", "states matched to truth", "ATE RMSE (m)", "RPE per step (m / deg)",
+                   "inside 1/2/3 sigma (%; ideal 68/95/99.7)"], rows)
 
 
 def _plots(folder: Path | None) -> str:

@@ -11,6 +11,9 @@
 Sigmas are per tangent axis in GTSAM's order: for poses and rotations rx ry rz is the rotation about
 the body axes (rad) and tx ty tz the translation along them (m). `components` and `sigma_components`
 name the entries of the value and sigma lists; when present on reading they must be these names.
+`elements` names the values of a parameter whose robot model names its elements (a serial arm's
+`joint_offsets: {values: [...], elements: [shoulder_pan_joint, ...]}`, one per joint); when present on
+reading they must be the description's names, in its order.
 """
 
 from __future__ import annotations
@@ -79,6 +82,7 @@ def apply_calibration(desc: RobotDescription, entries: dict[str, Any], doc: Docu
             sigma = _sigma_array(entry.get("sigma"), param.count, param.vartype.dim)
         except (ValueError, TypeError) as exc:
             raise doc.error(path, str(exc)) from None
+        _check_elements(doc, path + ("elements",), param, entry)
         param.values, param.known = values, True
         if sigma is not None:
             param.sigma, param.fixed = sigma, False
@@ -86,14 +90,32 @@ def apply_calibration(desc: RobotDescription, entries: dict[str, Any], doc: Docu
             param.sigma, param.fixed = None, True
 
 
+def _check_elements(doc: Document, path: tuple, param: Parameter, entry: dict) -> None:
+    """A located error when `elements` names other elements than the description, or in another order."""
+    if "elements" not in entry:
+        return
+    got, expected = entry["elements"], list(param.elements or ())
+    if got == expected and expected:
+        return
+    shown = f"[{', '.join(map(str, got))}]" if isinstance(got, list) else repr(got)
+    if not expected:
+        raise doc.error(path, f"got {shown}; the description names no elements of {param.name!r} (they go by index): "
+                        "remove `elements`")
+    raise doc.error(path, f"got {shown}; expected [{', '.join(expected)}], the description's elements of "
+                    f"{param.name!r} in its order: reorder the values and their names together")
+
+
 def calibration_entry(param: Parameter, values: list[Any], sigmas: np.ndarray | None) -> dict[str, Any]:
     """One YAML entry: {type, value|values, sigma} with sigma per tangent axis; types with named
-    components (COMPONENTS) name them in `components` after the value and `sigma_components` after the sigma."""
+    components (COMPONENTS) name them in `components` after the value and `sigma_components` after the sigma;
+    a parameter with named elements (`Parameter.elements`) names them in `elements` after the values."""
     names = COMPONENTS.get(param.vartype.name)
     out: dict[str, Any] = {"type": param.vartype.name}
     listed = [param.vartype.to_list(v) for v in values]
     sig = None if sigmas is None or param.fixed else [[float(x) for x in row] for row in np.atleast_2d(sigmas)]
     out["values" if param.indexed else "value"] = listed if param.indexed else listed[0]
+    if param.indexed and param.elements and len(param.elements) == len(listed):
+        out["elements"] = list(param.elements)
     if names:
         out["components"] = list(names[0])
     if sig is not None:

@@ -7,14 +7,15 @@ from pathlib import Path
 
 from ..config.schema import validate_against
 from ..config.yamlio import load_yaml
-from ..errors import ConfigError
+from ..errors import ConfigError, PluginError
 from .description import COMMON_KEYS, RobotDescription, description_from_document
 from .registered import is_description_name, registered_document
 
 
 def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
     """`desc` after its robot model (registry `reg`) validated the model keys (its `schema`) and ran
-    `check_description`; errors are located in the description's file."""
+    `check_description`; errors are located in the description's file. Each indexed parameter gets the
+    names of its elements the model gives (`Parameter.elements`)."""
     model = reg.get("robot_models", desc.model)
     if model is None:
         raise desc.error(("model",), reg.unknown("robot_models", desc.model))
@@ -22,7 +23,17 @@ def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
     # the common keys were validated already; listing them keeps "accepted keys" complete
     model_schema["properties"] = {**{k: {} for k in COMMON_KEYS}, **model.schema.get("properties", {})}
     validate_against(desc.doc, model_schema, desc.extra)
-    model().check_description(desc)
+    instance = model()
+    instance.check_description(desc)
+    for name, param in desc.parameters.items():
+        names = instance.element_names(desc, name) if param.indexed else None
+        if names is None:
+            continue
+        names = tuple(str(n) for n in names)
+        if len(names) != param.count or len(set(names)) != len(names):
+            raise PluginError(f"robot model {model.name}: element_names gave {list(names)} for parameter {name!r} "
+                              f"of {desc.name!r}; expected {param.count} distinct names, one per value (plugin bug)")
+        param.elements = names
     return desc
 
 

@@ -78,7 +78,10 @@ class Parameter:
     """A calibration parameter: nominal value(s) and the 1-sigma of its prior (None: no prior).
 
     `fixed`: held at its value (not estimated). `known` is False when the description gives no
-    value: `values` then holds placeholders (zeros) until an initializer sets the variables."""
+    value: `values` then holds placeholders (zeros) until an initializer sets the variables.
+    `elements`: the names of an indexed parameter's elements its robot model gives
+    (`RobotModel.element_names`: a serial arm's joint offsets by joint), set when the model checks
+    the description; None: they go by index."""
 
     name: str
     vartype: VarType
@@ -89,10 +92,18 @@ class Parameter:
     unit: str = ""
     fixed: bool = False
     known: bool = True
+    elements: tuple[str, ...] | None = None
 
     @property
     def count(self) -> int:
         return len(self.values)
+
+    def element(self, i: int | None) -> str:
+        """How element i is named everywhere (summary, report, calibration.yaml, messages):
+        `joint_offsets[elbow_joint]` with element names, else `pulley[2]`; `vo_scale` if not indexed."""
+        if not self.indexed or i is None:
+            return self.name
+        return f"{self.name}[{self.elements[i] if self.elements else i}]"
 
 
 @dataclass

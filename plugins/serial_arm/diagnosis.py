@@ -19,7 +19,7 @@ from fusionkit.api import gaussian, Spec
 
 from .identifiability import analyze, kinematic_regressor
 from .kinematics import Layout, parameters_of
-from .model import AXIS_NAMES, arm_of
+from .model import AXIS_NAMES, arm_of, group_joints
 from .residuals import held_axes_residual
 
 HOLD_SIGMA = 1e-9  # prior sigma (SI units per axis) holding an unidentifiable parameter at its nominal value
@@ -59,14 +59,12 @@ def parameter_axes(layout: Layout, variables: list, desc, chain) -> list[tuple]:
 
 
 def element_name(desc, name: str, index: int | None) -> str:
-    """`joint_offsets[elbow_joint]` for a kinematic group's element, `base` for a single parameter."""
+    """`joint_offsets[elbow_joint]` for a kinematic group's element, `base` for a single parameter: as the
+    summary, report.json and calibration.yaml name it (SerialArmModel.element_names)."""
     if index is None:
         return name
-    for group in (desc.extra.get("kinematics") or {}).get("joint_offsets", []) + \
-            (desc.extra.get("kinematics") or {}).get("placements", []):
-        if group["parameter"] == name:
-            return f"{name}[{group['joints'][index]}]"
-    return f"{name}[{index}]"
+    joints = group_joints(desc.extra, name)
+    return f"{name}[{joints[index] if joints else index}]"
 
 
 def identify(ctx, spec: Spec) -> dict | None:
@@ -82,7 +80,7 @@ def identify(ctx, spec: Spec) -> dict | None:
     scale = np.array([prior_sigma(desc, name, index, a) for _, name, index, a, _, _ in info])
     result = analyze(A, np.where(np.isfinite(scale), scale, 1.0))
     names = [element_name(desc, name, index) + label for _, name, index, _, label, _ in info]
-    _hold(ctx, robot, desc, info, result.held, used_ks)
+    _hold(ctx, robot, desc, info, result, names, used_ks)
     report = {"configurations": configurations, "rows": int(A.shape[0]), "parameters": names,
               "rank": result.rank, "held": [names[h] for h in result.held],
               "combinations": {names[h]: {names[j]: c for j, c in result.combinations[h]} for h in result.held},
@@ -140,21 +138,40 @@ def prior_sigma(desc, name: str, index: int | None, axis: int) -> float:
     return float(sigma[index or 0][axis]) if sigma is not None else np.inf
 
 
-def _hold(ctx, robot: str, desc, info: list, held: list[int], used_ks: dict) -> None:
+MAX_PARTNERS = 4  # parameters named in a held element's reason; more are counted
+
+
+def held_reason(result, held: list[int], names: list[str]) -> str:
+    """Why the columns `held` (the axes of one variable) are held, in the words the summary prints after
+    `held`: "not identifiable with base.rz" -- the other parameters of their combinations, each once."""
+    partners = list(dict.fromkeys(names[j] for h in held for j, _ in result.combinations[h]))
+    if not partners:
+        return "moves no measurement"
+    more = len(partners) - MAX_PARTNERS
+    shown = ", ".join(partners[:MAX_PARTNERS]) + (f" and {more} more" if more > 0 else "")
+    return f"not identifiable with {shown}"
+
+
+def _hold(ctx, robot: str, desc, info: list, result, names: list[str], used_ks: dict) -> None:
+    """A hold factor on the held axes of each variable, and ctx.hold so that reports print them as held."""
     by_variable: dict[tuple, list[int]] = {}
-    for h in held:
-        _, name, index, a, _, _ = info[h]
-        by_variable.setdefault((name, index), []).append(a)
-    for (name, index), axes in by_variable.items():
+    for h in result.held:
+        _, name, index, _, _, _ = info[h]
+        by_variable.setdefault((name, index), []).append(h)
+    for (name, index), columns in by_variable.items():
         param = desc.parameters[name]
         value = param.values[index or 0]
         vartype = param.vartype.name if param.vartype.name in ("pose3", "scalar") else "vector"
         label = f"held:{robot}/{element_name(desc, name, index)}"
+        axes = [info[h][3] for h in columns]
+        axis_labels = [info[h][4].lstrip(".") for h in columns] if vartype != "scalar" else []
+        reason = held_reason(result, columns, names)
         ks = sorted(used_ks[(name, index)]) if param.time_varying else [None]
         for k in ks:
             key = ctx.parameter(robot, name, index, k)
             ctx.add_record(hold_factor(key, vartype, value, sorted(axes)), label,
                            float("-inf") if k is None else ctx.state_time(robot, k))
+            ctx.hold(key, axes, reason, axis_labels)
 
 
 def _terms(result, h: int, names: list[str], info: list) -> str:

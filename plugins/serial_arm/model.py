@@ -94,6 +94,16 @@ def kinematic_groups(extra: dict) -> tuple:
     return kin.get("base"), kin.get("tool"), groups("joint_offsets"), groups("placements")
 
 
+def group_joints(extra: dict, parameter: str) -> list[str] | None:
+    """The joints of the kinematic group (joint offsets or placements) whose parameter is `parameter`, in its
+    values' order: the names of its elements (`joint_offsets[elbow_joint]`); None if no group has it."""
+    kin = extra.get("kinematics") or {}
+    for group in [*kin.get("joint_offsets", ()), *kin.get("placements", ())]:
+        if group["parameter"] == parameter:
+            return list(group["joints"])
+    return None
+
+
 def arm_of(desc: RobotDescription) -> Arm:
     return Arm(load_chain(desc), *kinematic_groups(desc.extra))
 
@@ -144,6 +154,10 @@ class SerialArmModel(RobotModel):
                             raise desc.error(path + ("joints",), f"joint {j!r}{'' if axis == 'offset' else ' ' + axis} "
                                              f"is already in another {key} group")
                         taken.add((key, j, axis))
+
+    def element_names(self, desc: RobotDescription, parameter: str) -> list[str] | None:
+        """A kinematic group's parameter has one element per joint: named by the joint."""
+        return group_joints(desc.extra, parameter)
 
     def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
         """The arm as a polyline through its joints' origins to the tool frame, at the state's joint vector plus

@@ -184,7 +184,7 @@ class UwbSimulator(Simulator):
                     "parameters": {}}
             if p["bias_model"] != "none":
                 desc["parameters"]["uwb_bias"] = {"type": "scalar", "values": [0.0] * len(anchors), "sigma": 1.0,
-                                                  "time_varying": p["bias_model"] == "time_varying"}
+                                                  "time_varying": p["bias_model"] == "time_varying", "unit": "m"}
             if p["scale_error"]:
                 desc["parameters"]["uwb_scale"] = {"type": "scalar", "value": 0.0, "sigma": 0.1}
             if "ranges" in p["time_offset"]:
