@@ -153,7 +153,7 @@ def summary_text(settings: list[dict], results: list[dict], figures: list[str]) 
         failed = sum(r["status"] == "error" for r in runs)
         rejected = sum(r["status"] == "rejected" for r in runs)
         lines.append(f"{head}: {len(runs)} run(s)" + (f", {failed} failed" if failed else "")
-                     + (f", {rejected} refused by the chi-square gate (counted below)" if rejected else ""))
+                     + (f", {rejected} rejected by a check (counted below)" if rejected else ""))
         for f in figures:
             values = np.array([r[f] for r in runs if isinstance(r[f], (int, float)) and not isinstance(r[f], bool)],
                               float)

@@ -79,6 +79,8 @@ CONFIG_SCHEMA = {
                 "new_states": {"enum": ["initial", "carried"], "default": "initial"},
                 "relinearize_threshold": {**POSITIVE, "default": 0.01},
                 "updates_per_step": {"type": "integer", "minimum": 1, "default": 1},
+                "relinearize_skip": {"type": "integer", "minimum": 1, "default": 1},
+                "relinearize_marginal_variables": {"type": "boolean", "default": False},
                 "max_cost_ratio": POSITIVE,  # default by type: SOLVER_TYPE_DEFAULTS
                 "marginals": {"type": "boolean", "default": True},
                 "a_posteriori_sigmas": {"type": "boolean", "default": False},

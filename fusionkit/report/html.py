@@ -34,7 +34,9 @@ def _solver(result: RunResult) -> str:
             ["chi-square per degree of freedom", "-" if s.chi2_per_dof is None else f"{s.chi2_per_dof:.3g}"],
             ["solve time", f"{s.seconds:.3f} s"]]
     if s.rejection:
-        rows.append(["status", f"<span class=bad>REJECTED by the chi-square gate</span>: {escape(str(s.rejection))}"])
+        rows.append(["status", f"<span class=bad>REJECTED</span>: {escape(str(s.rejection))}"])
+    for w in s.warnings:
+        rows.append([f"warning [{escape(w.name)}]", escape(w.text().split(": ", 1)[1])])
     for label, fit in (s.noise_scales or {}).items():
         rows.append([f"noise scale of {escape(label)}", escape(scale_text(fit))])
     latency = s.stats().get("step_latency_ms")

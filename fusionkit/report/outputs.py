@@ -113,7 +113,8 @@ def report_document(result: RunResult) -> dict:
         "problem": {"factors": len(problem.records), "variables": int(problem.initial.size()),
                     "states": {r: len(s) for r, s in problem.states.items()}, "factors_by_entry": counts},
         "states": states_entry(result),
-        "status": solver["status"],  # "rejected": the chi-square gate refused the solution (solver.rejection)
+        "status": solver["status"],  # "rejected": a check refused the solution (solver.rejection says why)
+        "warnings": solver["warnings"],  # what the checks that need no ground truth found (also in solver)
         "solver": solver,
         "final_cost": solver["final_cost"],
         "timings_s": result.timings,

@@ -151,7 +151,8 @@ def summary_text(result: RunResult) -> str:
     fit = "" if s.chi2_per_dof is None else f", chi2/dof {s.chi2_per_dof:.3g} (sigma0 {s.sigma0:.3g})"
     lines = [f"fusionkit: {result.config.name}: {s.solver}, {s.iterations} iteration(s)/step(s), "
              f"cost {s.initial_error:.4g} -> {s.final_error:.4g}{fit}, solved in {s.seconds:.3f} s"
-             + (" -- REJECTED by the chi-square gate" if s.rejection else "")]
+             + (" -- REJECTED (see the error below)" if s.rejection else "")]
+    lines += [f"  {w.text()}" for w in s.warnings]
     if s.sigmas_scaled:
         lines.append(f"  sigmas below are scaled by sigma0 = {s.sigma0:.3g} (solver.a_posteriori_sigmas)")
     for label, fit in (s.noise_scales or {}).items():

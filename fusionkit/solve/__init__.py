@@ -9,6 +9,7 @@ from ..progress import Progress
 from .batch import solve_batch
 from .checks import check_solution, chi_square_per_dof
 from .covariance_recovery import recovered_marginals, tree_marginals
+from .health import health
 from .factorization import resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
@@ -46,6 +47,9 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     result.rejection = check_solution(problem, graph, result.values, result.initial_error, result.final_error,
                                       settings["max_cost_ratio"], allowed_rise)
     result.chi2_per_dof = chi_square_per_dof(graph, result.values, result.final_error)
+    warnings, why = health(problem, result.values, settings, result.revisions)
+    result.warnings += warnings
+    result.rejection = result.rejection or why
     if settings["marginals"] and kind != "fixed_lag":
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")

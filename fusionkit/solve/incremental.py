@@ -29,6 +29,7 @@ from ..graph.evaluator import GraphEvaluator
 from ..graph.keys import STATE
 from .checks import check_constrained, unconstrained_message
 from .covariance_recovery import tree_marginals
+from .health import RevisionMonitor, first_jump
 from .linear_containers import LinearContainers
 from .result import SolveResult, SolveWarning
 
@@ -36,7 +37,7 @@ from .result import SolveResult, SolveWarning
 def _isam2_params(settings: dict) -> gtsam.ISAM2Params:
     p = gtsam.ISAM2Params()
     p.setRelinearizeThreshold(settings["relinearize_threshold"])
-    p.relinearizeSkip = 1
+    p.relinearizeSkip = settings["relinearize_skip"]
     # a removed factor leaves an empty slot in iSAM2's factor list, and fusionkit removes factors at every update
     # (linear_containers: swapped when relinearized): reuse the slots, or the list and each update's cost grow
     p.findUnusedFactorSlots = True
@@ -91,23 +92,32 @@ def warm_start(problem: Problem, steps: list, settings: dict) -> tuple[list, gts
     return records, values, last, rest
 
 
-def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float):
+def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float, monitor: RevisionMonitor | None):
     msg = unconstrained_message(problem, exc)
     if msg is None:
         raise exc
+    astray = first_jump(monitor.revisions) if monitor else None
+    if astray is not None:
+        raise SolverError(
+            f"the incremental solve diverged: GTSAM found the linear system indeterminate while adding the "
+            f"measurements at t={t:.3f} s, after the estimates had gone astray from t = {astray.t:.2f} s "
+            f"({problem.keys.name_of(astray.key)} revised by {np.sqrt(astray.d2):.3g} sigma by the next update); "
+            "not a missing constraint: try solver.new_states: carried (new states predicted from the current "
+            "estimate), solver.warmup, solver.updates_per_step, or the batch solver") from None
     raise SolverError(f"{msg} (while adding the measurements at t={t:.3f} s incrementally: a variable the whole "
                       "graph constrains may not be constrained yet by the measurements so far; static parameters "
                       "need a prior until the data constrain them, or solver.warmup)") from None
 
 
-def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values]) -> tuple[gtsam.Values, float]:
+def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values],
+                monitor: RevisionMonitor | None = None) -> tuple[gtsam.Values, float]:
     """Run one solver update, which returns the estimate it hands out; return (estimate, wall time in s),
-    turning an indeterminate system into a SolverError."""
+    turning an indeterminate system into a SolverError (a divergence when `monitor` saw the estimates go astray)."""
     tic = time.perf_counter()
     try:
         values = update()
     except RuntimeError as exc:
-        _raise_unconstrained(problem, exc, t)
+        _raise_unconstrained(problem, exc, t, monitor)
     return values, time.perf_counter() - tic
 
 
@@ -185,7 +195,28 @@ def _checked(problem: Problem, settings: dict) -> tuple[dict, list[SolveWarning]
 
 
 def _containers(problem: Problem, settings: dict) -> LinearContainers:
-    return LinearContainers(settings["relinearize_threshold"], lambda k: problem.keys.decode(k)[0].vartype)
+    return LinearContainers(settings["relinearize_threshold"], lambda k: problem.keys.decode(k)[0].vartype,
+                            settings["relinearize_skip"], settings["relinearize_marginal_variables"])
+
+
+def leaving_keys(window: dict[int, float], stamps: dict[int, float], lag: float) -> list[int]:
+    """The keys IncrementalFixedLagSmoother marginalizes in an update that adds `stamps` to its timestamps
+    `window`: its rule (FixedLagSmoother::findKeysBefore), those stamped before the latest stamp minus the lag."""
+    stamped = {**window, **stamps}
+    if not stamped:
+        return []
+    horizon = max(stamped.values()) - lag
+    return [k for k, kt in stamped.items() if kt < horizon]
+
+
+def _check_marginalized(problem: Problem, before: set[int], after: set[int], expected: set[int]) -> None:
+    """The smoother marginalized exactly the keys leaving_keys named (their last estimates are kept): anything
+    else is a fusionkit error, never a silently lost state."""
+    gone = before - after
+    if gone != expected:
+        odd = sorted(gone ^ expected)[:3]
+        raise RuntimeError("the fixed-lag smoother marginalized other keys than expected: "
+                           + ", ".join(problem.keys.name_of(k) for k in odd))
 
 
 def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float], None] | None = None) -> SolveResult:
@@ -200,10 +231,13 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
         first, values, t, steps = warm_start(problem, steps, settings)
         estimate, _ = _timed_step(problem, t, lambda: _isam2_update(isam, containers, first, values))
         warmup = time.perf_counter() - tic
+    monitor = RevisionMonitor(problem)
     for i, (t, records, new) in enumerate(steps):
         estimate, dt = _timed_step(problem, t, lambda: _isam2_step(
-            isam, containers, records, new_values(problem, settings, new, estimate), settings["updates_per_step"]))
+            isam, containers, records, new_values(problem, settings, new, estimate), settings["updates_per_step"]),
+            monitor)
         latency.append(dt)
+        monitor.step(t, new, estimate, isam)
         if progress and i % 100 == 0:
             progress(i, float("nan"))
     estimate = _settle(isam, containers, estimate)
@@ -211,7 +245,8 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     cost = problem.evaluator().error
     return SolveResult(estimate, "isam2", cost(problem.initial), cost(estimate), len(latency),
                        seconds, step_latency=np.asarray(latency), marginal=isam.marginalCovariance,
-                       warmup_seconds=warmup, factorization=settings["factorization"], warnings=warnings)
+                       warmup_seconds=warmup, factorization=settings["factorization"], warnings=warnings,
+                       swaps=containers.swap_statistics(), revisions=monitor.revisions)
 
 
 def solve_fixed_lag(problem: Problem, settings: dict,
@@ -219,30 +254,29 @@ def solve_fixed_lag(problem: Problem, settings: dict,
                     marginal_keys: set[int] | None = None) -> SolveResult:
     """IncrementalFixedLagSmoother with `lag` seconds. Static variables are re-stamped at every
     update so they stay in the window; each state keeps the estimate (and covariance, for
-    `marginal_keys`) it had when it left the window."""
+    `marginal_keys`) it had when it left the window: the keys the smoother marginalizes in an update are
+    found by its own rule on its own timestamps (leaving_keys) and checked against what it did."""
     settings, warnings = _checked(problem, settings)
     lag = float(settings["lag"])
     smoother = gtsam.IncrementalFixedLagSmoother(lag, _isam2_params(settings))
     containers = _containers(problem, settings)
     static = [k for k, t in problem.key_time.items() if t == float("-inf")]
-    in_window: dict[int, float] = {}
     final: dict[int, object] = {}
     covariances: dict[int, np.ndarray] = {}
     latency = []
     start = time.perf_counter()
     now, est = None, gtsam.Values()  # est: the estimate handed out after the latest update
-    steps, warm_values, warmup, early = list(time_steps(problem)), None, 0.0, []
+    steps, warm_values, warmup = list(time_steps(problem)), None, 0.0
+    monitor = RevisionMonitor(problem)
     if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, warm_values, t, steps = warm_start(problem, steps, settings)
         steps.insert(0, (t, first, list(warm_values.keys())))
-        # states older than the window leave inside the first update: keep their warm-up solution
-        early = [k for k in warm_values.keys() if problem.key_time[k] != float("-inf")
-                 and problem.key_time[k] < t - lag]
-        for k in early:
-            final[k] = problem.keys.decode(k)[0].vartype.read(warm_values, k)
-        if marginal_keys and early:
-            covariances.update(tree_marginals(GraphEvaluator(first), warm_values, set(early) & marginal_keys))
+        # states older than the window leave inside the first update: their covariance from the warm-up solve
+        early = set(leaving_keys({}, {k: problem.key_time[k] for k in warm_values.keys()
+                                      if problem.key_time[k] != float("-inf")} | {k: t for k in static}, lag))
+        if marginal_keys and early & marginal_keys:
+            covariances.update(tree_marginals(GraphEvaluator(first), warm_values, early & marginal_keys))
         warmup = time.perf_counter() - tic
 
     def add(records, values: gtsam.Values, stamps: dict) -> None:
@@ -261,22 +295,21 @@ def solve_fixed_lag(problem: Problem, settings: dict,
 
     for i, (t, records, new) in enumerate(steps):
         now = t if np.isfinite(t) else (now if now is not None else 0.0)
-        leaving = [k for k, kt in in_window.items() if kt < now - lag]
-        if leaving:
-            for k in leaving:
-                final[k] = problem.keys.decode(k)[0].vartype.read(est, k)
-                if marginal_keys and k in marginal_keys:
-                    covariances[k] = smoother.marginalCovariance(k)
-                del in_window[k]
         stamps = {k: now for k in static}
         for k in new:
             kt = problem.key_time[k]
             stamps[k] = now if kt == float("-inf") else kt
-            if kt != float("-inf") and k not in final:
-                in_window[k] = kt
         values = warm_values if i == 0 and warm_values is not None else new_values(problem, settings, new, est)
-        gone = early if i == 0 and warm_values is not None else leaving
-        est, dt = _timed_step(problem, now, lambda: update(records, values, stamps, gone))
+        window = smoother.timestamps()
+        leaving = leaving_keys(window, stamps, lag)
+        for k in leaving:
+            vt = problem.keys.decode(k)[0].vartype
+            final[k] = vt.read(est, k) if est.exists(k) else vt.read(values, k)
+            if marginal_keys and k in marginal_keys and est.exists(k):
+                covariances[k] = smoother.marginalCovariance(k)
+        est, dt = _timed_step(problem, now, lambda: update(records, values, stamps, leaving), monitor)
+        _check_marginalized(problem, set(window) | set(stamps), set(smoother.timestamps()), set(leaving))
+        monitor.step(now, new, est, smoother.getISAM2())
         if i == 0 and warm_values is not None:
             warmup += dt
         else:
@@ -293,4 +326,5 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     cost = problem.evaluator().error
     return SolveResult(estimate, "fixed_lag", cost(problem.initial), cost(estimate), len(latency),
                        seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup,
-                       factorization=settings["factorization"], warnings=warnings)
+                       factorization=settings["factorization"], warnings=warnings, swaps=containers.swap_statistics(),
+                       revisions=monitor.revisions)

@@ -15,11 +15,17 @@ estimate handed out after the previous update. fusionkit applies the same test b
 in that same update, swaps the factors on those variables for ones linearized at their new theta
 (removed by index, re-added; one call per group). So the solver holds, at every update, the
 linearizations it would have made itself: the same results as the factors handed over as CustomFactors
-(tests), with no callback into Python and no copy of the Values. One difference, kept on purpose: a
-variable on a marginal factor of the fixed-lag smoother keeps its linearization point in GTSAM, while
-fusionkit linearizes the factors on it at the current estimate whenever its step passes the threshold
-(holding it as GTSAM does moved the fixed-lag estimate of a motion-capture clock offset from 0.23 to 0.75
-of batch's sigma away from batch, tests/plugins/uwb/test_drone_clocks.py)."""
+(tests: equal to 1e-12), with no callback into Python and no copy of the Values.
+
+iSAM2 checks relinearization only at every `relinearizeSkip`-th update (`solver.relinearize_skip`), and never
+moves the linearization point of a variable in its fixed set: those on the marginal factors the fixed-lag
+smoother leaves when it marginalizes states (ISAM2::marginalizeLeaves), a static calibration parameter among them
+as soon as the first state leaves the window. fusionkit mirrors both: a fixed variable's factors are linearized
+at its frozen point, as GTSAM's own factors on it are, so each variable has one linearization point (the
+consistency first-estimate Jacobians exist for). `solver.relinearize_marginal_variables: true` instead
+linearizes the Python factors on fixed variables at their current estimate whenever their step passes the
+threshold (fusionkit before 0.2): two linearization points for one variable, and on a scaled-VO fixed-lag run
+the scale's factors swapped at every update (benchmarks/bench_fixed_lag_swaps.py)."""
 
 from __future__ import annotations
 
@@ -38,6 +44,12 @@ def tracked(record) -> str | None:
     if in_group(record):
         return "group"
     return "factor" if isinstance(record.factor, gtsam.CustomFactor) else None
+
+
+def _fixed_variables(solver):
+    """The variables whose linearization point iSAM2 holds (gtsam.ISAM2 or IncrementalFixedLagSmoother)."""
+    isam = solver.getISAM2() if hasattr(solver, "getISAM2") else solver
+    return isam.getFixedVariables()
 
 
 def _entry(record, kind: str) -> tuple:
@@ -61,24 +73,34 @@ class LinearContainers:
     """Tracks the Python factors handed to one incremental solver: which solver index holds which entry
     (_entry), and which of them sit on each variable."""
 
-    def __init__(self, threshold: float, vartype_of):
+    def __init__(self, threshold: float, vartype_of, skip: int = 1, relinearize_fixed: bool = False):
         self.threshold = threshold
         self.vartype_of = vartype_of  # key -> VarType
+        self.skip = skip  # iSAM2's relinearizeSkip: the relinearization test runs at every skip-th update
+        self.relinearize_fixed = relinearize_fixed  # solver.relinearize_marginal_variables
+        self.updates = 0  # updates so far (iSAM2's update_count_)
         self.slot: dict[int, tuple] = {}  # solver factor index -> _entry
         self.on_key: dict[int, set[int]] = {}  # variable key -> solver indices of tracked factors on it
+        self.swaps: list[int] = []  # per update: tracked factors removed and added again (relinearized)
+        self.held_count: list[int] = []  # per update: tracked factors the solver held before it
+        self.held: list[int] = []  # per update: fixed variables whose step passed the threshold, held (GTSAM's rule)
         self._dims: dict[int, int] = {}
 
-    def relinearizing(self, delta: gtsam.VectorValues, keys: list[int]) -> set[int]:
+    def relinearizing(self, delta: gtsam.VectorValues, keys: list[int], fixed=frozenset()) -> set[int]:
         """Those of `keys` the solver's next update relinearizes: iSAM2's test on the current step (largest
-        component >= threshold). Variables the fixed-lag smoother holds fixed (those on its marginal factors,
-        ISAM2::marginalizeLeaves) pass it too, on purpose: their factors are linearized at the current
-        estimate, where GTSAM keeps their first linearization point (module docstring)."""
+        component >= threshold), but for the variables in `fixed` (the solver's fixed set), whose linearization
+        point iSAM2 never moves; with `relinearize_fixed` those pass it too (module docstring)."""
         if not keys:
             return set()
         dims = np.array([self.dim(k) for k in keys])
         step = np.abs(np.asarray(delta.vector(keys), dtype=float).ravel())  # the keys' steps, in their order
         largest = np.maximum.reduceat(step, np.concatenate([[0], np.cumsum(dims)[:-1]]))
-        return {k for k, m in zip(keys, largest) if m >= self.threshold}
+        passed = {k for k, m in zip(keys, largest) if m >= self.threshold}
+        if self.relinearize_fixed or not passed:
+            return passed
+        held = passed & set(fixed)  # a gtsam.KeySet: iterable
+        self.held[-1] += len(held)
+        return passed - held
 
     def dim(self, key: int) -> int:
         if key not in self._dims:
@@ -90,6 +112,10 @@ class LinearContainers:
         as they are, their Python ones and the tracked ones on variables the update relinearizes, linearized
         (one call per group) at theta as it will be after the update's relinearization: the current estimate
         for those variables, theta for the others, `new_values` for new variables."""
+        self.updates += 1
+        self.swaps.append(0)
+        self.held.append(0)
+        self.held_count.append(len(self.slot))
         out = Step()
         entries = []
         for r in records:
@@ -101,8 +127,12 @@ class LinearContainers:
         if not entries and not self.slot:
             return out
         delta = solver.getDelta()
-        moving = self.relinearizing(delta, [k for k, on in self.on_key.items() if on])
-        for index in sorted({i for k in moving for i in self.on_key.get(k, ())}):
+        moving = set()
+        if self.updates % self.skip == 0:  # iSAM2 checks relinearization at this update
+            moving = self.relinearizing(delta, [k for k, on in self.on_key.items() if on], _fixed_variables(solver))
+        swapped = sorted({i for k in moving for i in self.on_key.get(k, ())})
+        self.swaps[-1] = len(swapped)
+        for index in swapped:
             entry = self.slot.pop(index)
             for k in entry[2]:
                 self.on_key[k].discard(index)
@@ -124,6 +154,20 @@ class LinearContainers:
             for entry, linear in zip(group_entries, group_entries[0][0].subset(rows).linear_factors(reader)):
                 self._add(out, entry, linear, at)
         return out
+
+    def swap_statistics(self) -> dict:
+        """Per update (those that held tracked factors): tracked factors relinearized (removed and added again),
+        their share of those held, and fixed variables held at their frozen point although their step passed
+        the threshold (report.json solver.relinearized_python_factors)."""
+        held = np.asarray(self.held_count, dtype=float)
+        swaps = np.asarray(self.swaps, dtype=float)
+        some = held > 0
+        if not some.any():
+            return {}
+        share = swaps[some] / held[some]
+        return {"updates": int(some.sum()), "per_update_p50": float(np.median(swaps[some])),
+                "per_update_max": int(swaps[some].max()), "share_p50": float(np.median(share)),
+                "fixed_variables_held_per_update_p50": float(np.median(np.asarray(self.held)[some]))}
 
     @staticmethod
     def _linearization_point(theta: gtsam.Values, delta: gtsam.VectorValues, moving: set[int]) -> gtsam.Values:

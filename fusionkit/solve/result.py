@@ -43,11 +43,13 @@ class SolveResult:
     marginal: Callable[[int], np.ndarray] | None = None  # solver-native marginal covariance, if any
     warmup_seconds: float = 0.0  # incremental solvers: the batch-solved start-up segment
     chi2_per_dof: float | None = None  # 2 cost / degrees of freedom; None without redundancy
-    rejection: str | None = None  # why the chi-square gate refused the solution; None: accepted
+    rejection: str | None = None  # why a check (chi-square gate, incremental health) refused the solution; None: accepted
     sigmas_scaled: bool = False  # covariances multiplied by sigma0^2 (solver.a_posteriori_sigmas)
     noise_scales: dict[str, dict] | None = None  # `noise_scale: estimate` entries (solve/noise_scales.py)
     factorization: str = "cholesky"  # the one the solve used (QR where Cholesky failed on a determinate system)
     warnings: list[SolveWarning] = field(default_factory=list)
+    swaps: dict = field(default_factory=dict)  # incremental: LinearContainers.swap_statistics()
+    revisions: list = field(default_factory=list)  # incremental: health.Revision per time step
 
     @property
     def sigma0(self) -> float | None:
@@ -69,4 +71,6 @@ class SolveResult:
             out["step_latency_ms"] = {"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)),
                                       "max": float(lat.max()), "steps": int(len(lat))}
             out["warmup_seconds"] = self.warmup_seconds
+        if self.swaps:
+            out["relinearized_python_factors"] = self.swaps
         return out

@@ -372,7 +372,7 @@ def test_bad_override_paths_say_why_the_path_is_invalid(out, capsys, assignment,
     ("factors[1].sigma.rotation=", "factors[1].sigma.rotation", "got ''; expected a number > 0"),
     ("solver.typo=1", "solver.typo", ("unknown key 'typo'; accepted keys: a_posteriori_sigmas, absolute_tolerance, damping, factorization, lag, "
                                      "marginals, max_cost_ratio, max_iterations, method, new_states, ordering, refine, relative_tolerance, "
-                                     "relinearize_threshold, type, updates_per_step, warmup")),
+                                     "relinearize_marginal_variables, relinearize_skip, relinearize_threshold, type, updates_per_step, warmup")),
     ("solver.refine={vo: {sigma: 1}}", "solver.refine.vo",
      "no factor entry has label 'vo'; labelled entries: (none: give one a label)"),
     ("solver={type: isam2, refine: {vo: {}}}", "solver.refine",

@@ -98,7 +98,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
                         "absolute_tolerance, damping, "
                         "factorization, lag, marginals, max_cost_ratio, max_iterations, method, new_states, ordering, "
                         "refine, relative_tolerance, "
-                        "relinearize_threshold, type, updates_per_step, warmup")
+                        "relinearize_marginal_variables, relinearize_skip, relinearize_threshold, type, updates_per_step, warmup")
 
 
 @pytest.mark.parametrize("solver, message", [
@@ -112,7 +112,7 @@ def test_unknown_key_is_located_at_its_own_line_and_lists_accepted_keys():
     ("[batch]", ("c.yaml:3: solver: got ['batch']; expected a mapping with keys type, method, damping, factorization, "
                 "ordering, max_iterations, "
                 "relative_tolerance, absolute_tolerance, lag, warmup, new_states, relinearize_threshold, updates_per_step, "
-                "max_cost_ratio, marginals, a_posteriori_sigmas, refine")),
+                "relinearize_skip, relinearize_marginal_variables, max_cost_ratio, marginals, a_posteriori_sigmas, refine")),
 ])
 def test_wrong_values_say_what_is_accepted(solver, message):
     err = _schema_error(CONFIG_SCHEMA, f"robots: {{cam: {{description: r.yaml}}}}\nfactors: [{{type: a}}]\n"
@@ -209,7 +209,8 @@ def test_scaled_vo_loads_with_overrides_applied():
     # the solver section with its defaults: the schema's, then iSAM2's factorization and chi-square gate
     assert config.solver == {"type": "isam2", "method": "lm", "damping": "marquardt", "ordering": "auto", "max_iterations": 100,
                              "relative_tolerance": 1e-6, "absolute_tolerance": 1e-9, "lag": 2.0, "warmup": 0,
-                             "new_states": "initial", "relinearize_threshold": 0.01, "updates_per_step": 1, "marginals": True, "a_posteriori_sigmas": False,
+                             "new_states": "initial", "relinearize_threshold": 0.01, "updates_per_step": 1,
+                             "relinearize_skip": 1, "relinearize_marginal_variables": False, "marginals": True, "a_posteriori_sigmas": False,
                              "factorization": "qr", "max_cost_ratio": 10.0}
     assert config.output == {"plots": True, "state_covariances": False}
     assert config.factors[0]["sigma"] == {"rotation": 0.01, "translation": 0.0016}

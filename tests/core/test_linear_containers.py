@@ -78,11 +78,12 @@ def test_incremental_solvers_never_evaluate_a_vectorized_factor_one_at_a_time(ru
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SOLVERS)
 def test_incremental_estimates_with_containers_match_the_one_by_one_factors(runs, name):
+    """The same linearizations in the same updates: the same path to rounding (measured 2e-15 after the last
+    update; 2e-3 in the fixed-lag runs while fusionkit relinearized the variables GTSAM holds fixed)."""
     gap = _pose_gap(runs[name], runs[name + "_one_by_one"])
-    assert gap < (2e-3 if name == "isam2" else 5e-3), gap
+    assert gap < 1e-9, gap
     scale = lambda r: float(r.parameters["cam"]["vo_scale"].values[0])  # noqa: E731
-    sigma = float(runs["lm"].parameters["cam"]["vo_scale"].sigma[0, 0])
-    assert scale(runs[name]) == pytest.approx(scale(runs[name + "_one_by_one"]), abs=0.2 * sigma)
+    assert scale(runs[name]) == pytest.approx(scale(runs[name + "_one_by_one"]), abs=1e-9)
 
 
 @pytest.mark.slow

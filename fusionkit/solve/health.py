@@ -1,0 +1,280 @@
+"""Health of a solve from the data alone, no ground truth: where the estimate does not fit, and whether an
+incremental solver (iSAM2, fixed-lag) lost track.
+
+An incremental solver hands out an estimate after every time step and takes one Gauss-Newton step per update:
+it can lose track (a window that diverged, a calibration parameter frozen at a poor first estimate, a new state
+far from its prediction) and still end with a plausible total cost. The checks:
+
+- **fit per window** (`window_fit`, `misfit_windows`): the run is cut into windows (fixed-lag: `solver.lag`
+  seconds; otherwise a twentieth of the run, at least a second) by factor time; each window's chi-square per
+  degree of freedom at the estimate (for the fixed-lag smoother: each state as it left the window), dof = its
+  factors' dimensions minus its states'. A window misfits when its ratio is both WINDOW_FACTOR times the
+  median window's (at least 1) and beyond the chi-square's 1 - WINDOW_P quantile for its dof.
+- **lost track or the data** (`fit_check`): a misfit has two causes, the data (a wheel slip, an outlier burst
+  the model does not explain: the best fit misfits there too) or the solver. For an incremental run the whole
+  graph is polished by Levenberg-Marquardt from its estimate; windows the polish fits clearly better (chi-square
+  down by more than the 1 - WINDOW_P quantile, to less than half) are where the solver lost track: the run is
+  rejected, the span named (warning `incremental_fit`). Otherwise, and always for batch, a warning
+  `local_misfit` names the span. The polish runs only when a window misfits.
+- **revisions beyond sigma** (`RevisionMonitor`, `jump_check`): after each time step, the estimate and marginal
+  covariance of the newest state of each robot and of every static variable are kept; at the next step, the
+  revision of each (Delta^T P^-1 Delta, Delta in its tangent space) is the update's innovation seen in the
+  state: a consistent smoother's revision has a covariance no larger than P, so d^2 beyond the chi-square's
+  1 - JUMP_P quantile means the estimate handed out live was not within its sigmas: warning
+  `incremental_jumps` with the updates' times (the final estimate is judged by the fit check).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+from scipy.stats import chi2
+
+from ..graph.builder import Problem
+from ..graph.keys import STATE
+from .result import SolveWarning
+
+WINDOW_FACTOR = 10.0  # a window's chi2/dof this many times the median window's (at least 1) fails
+WINDOW_P = 1e-6  # ... when also beyond the chi-square's 1 - WINDOW_P quantile for its dof
+JUMP_P = 1e-4  # a revision beyond the chi-square's 1 - JUMP_P quantile for the variable's dimension is a jump
+POLISH_ITERATIONS = 30  # Levenberg-Marquardt iterations of the polish that confirms a lost track
+MONITORED_DIM = 60  # static variables watched for jumps, at most this total dimension (the covariances cost)
+
+
+@dataclass
+class Revision:
+    """The largest revision of one time step: when, which variable, d^2 and the dimension it is judged with."""
+
+    t: float
+    key: int
+    d2: float
+    dim: int
+
+    @property
+    def jump(self) -> bool:
+        return self.d2 > chi2.ppf(1 - JUMP_P, self.dim)
+
+
+@dataclass
+class RevisionMonitor:
+    """Watches the estimate an incremental solver hands out at each time step (module docstring)."""
+
+    problem: Problem
+    static: list[int] = field(default_factory=list)
+    revisions: list[Revision] = field(default_factory=list)
+    _last: dict[int, tuple] = field(default_factory=dict)  # key -> (value, inverse covariance)
+    _newest: dict[int, tuple[int, int]] = field(default_factory=dict)  # state family id -> (index, key), newest
+
+    def __post_init__(self):
+        total = 0
+        for k in sorted(k for k, t in self.problem.key_time.items() if t == float("-inf")):
+            dim = self.problem.keys.decode(k)[0].vartype.dim
+            if total + dim > MONITORED_DIM:
+                break
+            self.static.append(k)
+            total += dim
+
+    def step(self, t: float, new_keys: list[int], estimate: gtsam.Values, isam: gtsam.ISAM2) -> None:
+        """After the time step at `t` that added `new_keys`: judge the revision of what was watched, then watch
+        the newest states and the static variables at `estimate` with `isam`'s marginal covariances."""
+        worst = None
+        for k, (value, information) in self._last.items():
+            if not estimate.exists(k):
+                continue
+            vt = self.problem.keys.decode(k)[0].vartype
+            delta = vt.local(value, vt.read(estimate, k))
+            d2 = float(delta @ information @ delta)
+            if worst is None or d2 / vt.dim > worst.d2 / worst.dim:
+                worst = Revision(t, k, d2, vt.dim)
+        if worst is not None:
+            self.revisions.append(worst)
+        for k in new_keys:
+            family, index = self.problem.keys.decode(k)
+            if family.kind == STATE and index > self._newest.get(family.id, (-1, 0))[0]:
+                self._newest[family.id] = (index, k)
+        self._last = {}
+        for k in [*(key for _, key in self._newest.values()), *self.static]:
+            if not estimate.exists(k):
+                continue
+            vt = self.problem.keys.decode(k)[0].vartype
+            try:
+                information = _information(np.asarray(isam.marginalCovariance(k)))
+            except RuntimeError:  # a variable the solver cannot give a covariance for is not watched
+                continue
+            if information is not None:
+                self._last[k] = (vt.read(estimate, k), information)
+
+
+def _information(covariance: np.ndarray) -> np.ndarray | None:
+    """The pseudo-inverse of a marginal covariance (symmetric eigen-decomposition), None when it is not finite
+    (a diverged solver's covariance: LAPACK's SVD does not return on NaN)."""
+    if not np.isfinite(covariance).all():
+        return None
+    w, v = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    keep = w > w.max() * 1e-12 if w.size and w.max() > 0 else np.zeros_like(w, dtype=bool)
+    return (v[:, keep] / w[keep]) @ v[:, keep].T
+
+
+
+def jump_check(problem: Problem, revisions: list[Revision]) -> list[SolveWarning]:
+    """A warning naming the updates whose estimate the next update moved beyond its sigmas (none: no warning).
+    Not a rejection: the estimates handed out live were overconfident there, the final estimate is judged by
+    the fit check."""
+    jumps = [r for r in revisions if r.jump]
+    if not jumps:
+        return []
+    worst = max(jumps, key=lambda r: r.d2 / r.dim)
+    spans = _spans([r.t for r in jumps])
+    text = (f"at {len(jumps)} of {len(revisions)} updates the next update moved an estimate it had handed out "
+            f"beyond its sigmas (chi-square above its 1 - {JUMP_P:g} quantile); worst "
+            f"{problem.keys.name_of(worst.key)} at t = {worst.t:.2f} s, {np.sqrt(worst.d2):.3g} sigma; at t = "
+            f"{_span_text(spans)}: the live estimates there were off by more than their sigmas claimed")
+    return [SolveWarning("incremental_jumps", text, (spans[0][0], spans[-1][1]))]
+
+
+def first_jump(revisions: list[Revision]) -> Revision | None:
+    """The earliest revision beyond its sigmas, if any: where an incremental run that later fails went astray."""
+    return next((r for r in revisions if r.jump), None)
+
+
+def health(problem: Problem, values: gtsam.Values, settings: dict, revisions: list[Revision] | None = None
+           ) -> tuple[list[SolveWarning], str | None]:
+    """The checks of a solve: (their warnings, why the run is rejected or None). Batch: the fit per window;
+    incremental: also confirmed by a polish (fit_check) and the revisions (jump_check)."""
+    incremental = settings["type"] != "batch"
+    warnings, rejection = fit_check(problem, values, window_length(settings, problem), incremental)
+    return warnings + jump_check(problem, revisions or []), rejection
+
+
+@dataclass
+class Window:
+    start: float
+    end: float
+    chi2: float
+    dof: int
+
+    @property
+    def ratio(self) -> float:
+        return self.chi2 / self.dof
+
+
+def window_fit(problem: Problem, values: gtsam.Values, length: float) -> list[Window]:
+    """Chi-square and degrees of freedom of the factors in each window of `length` seconds (by factor time;
+    static-only factors in none) at `values`; windows without redundancy are left out."""
+    times = np.array([r.time for r in problem.records])
+    timed = np.isfinite(times)
+    if not timed.any():
+        return []
+    errors = problem.evaluator().record_errors(values)
+    dims = np.array([r.factor.dim() for r in problem.records])
+    start = float(times[timed].min())
+    bins = np.floor((times[timed] - start) / length).astype(int)
+    chi = np.bincount(bins, weights=2 * errors[timed])
+    rows = np.bincount(bins, weights=dims[timed])
+    key_times = np.array([t for t in problem.key_time.values()])
+    key_dims = np.array([problem.keys.decode(k)[0].vartype.dim for k in problem.key_time])
+    finite = np.isfinite(key_times) & (key_times >= start)
+    key_bins = np.floor((key_times[finite] - start) / length).astype(int)
+    inside = key_bins < len(rows)
+    unknowns = np.bincount(key_bins[inside], weights=key_dims[finite][inside], minlength=len(rows))
+    out = []
+    for b in range(len(rows)):
+        dof = int(rows[b] - unknowns[b])
+        if dof > 0:
+            out.append(Window(start + b * length, start + (b + 1) * length, float(chi[b]), dof))
+    return out
+
+
+def misfit_windows(windows: list[Window]) -> tuple[list[Window], float]:
+    """(the windows that fit far worse than the others, the median window's chi2/dof, at least 1)."""
+    if len(windows) < 2:
+        return [], 1.0
+    median = max(1.0, float(np.median([w.ratio for w in windows])))
+    return [w for w in windows if w.ratio > WINDOW_FACTOR * median and w.chi2 > chi2.ppf(1 - WINDOW_P, w.dof)], median
+
+
+def polished(problem: Problem, values: gtsam.Values) -> gtsam.Values | None:
+    """The best fit of the whole graph reached by Levenberg-Marquardt (QR) from `values`; None if it fails."""
+    from .levenberg import DampingSettings, levenberg_marquardt
+    try:
+        out, _ = levenberg_marquardt(problem.evaluator(), values, 1e-6, 1e-9, POLISH_ITERATIONS, DampingSettings(),
+                                     qr=True)
+    except RuntimeError:
+        return None
+    return out
+
+
+def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental: bool
+              ) -> tuple[list[SolveWarning], str | None]:
+    """Windows that fit far worse than the others (misfit_windows). Incremental: the whole graph is polished from
+    `values`; where that fits the same windows clearly better (a chi-square drop beyond the 1 - WINDOW_P
+    quantile, to less than half), the solver lost track there: rejection. Otherwise, and for batch, the data
+    there are what the model does not explain: a named warning."""
+    windows = window_fit(problem, values, length)
+    failed, median = misfit_windows(windows)
+    if not failed:
+        return [], None
+    if incremental:
+        best = polished(problem, values)
+        refit = {(w.start, w.end): w for w in window_fit(problem, best, length)} if best is not None else {}
+        lost = [w for w in failed if (w.start, w.end) not in refit
+                or (w.chi2 - refit[(w.start, w.end)].chi2 > chi2.ppf(1 - WINDOW_P, w.dof)
+                    and refit[(w.start, w.end)].chi2 < 0.5 * w.chi2)]
+        if lost:
+            spans = _merge([(w.start, w.end) for w in lost])
+            worst = max(lost, key=lambda w: w.ratio)
+            after = refit.get((worst.start, worst.end))
+            text = (f"the estimate fits the data in {len(lost)} of {len(windows)} windows of {length:.3g} s far worse "
+                    f"than in the others and than the best fit of the same data does: chi-square per degree of "
+                    f"freedom up to {worst.ratio:.3g} (t = {worst.start:.2f} .. {worst.end:.2f} s; "
+                    + (f"{after.ratio:.3g} at the best fit" if after else "no best fit found")
+                    + f", median window {median:.3g}), at t = {_span_text(spans)}: the solver lost track there (a "
+                    "diverged update, a parameter frozen at a poor first estimate, a new state far from its "
+                    "prediction); try solver.new_states: carried, solver.warmup, a longer solver.lag, "
+                    "solver.updates_per_step, or the batch solver")
+            return [SolveWarning("incremental_fit", text, (spans[0][0], spans[-1][1]))], \
+                f"the incremental run failed its health check: {text}"
+    spans = _merge([(w.start, w.end) for w in failed])
+    worst = max(failed, key=lambda w: w.ratio)
+    text = (f"the data in {len(failed)} of {len(windows)} windows of {length:.3g} s fit far worse than in the "
+            f"others: chi-square per degree of freedom up to {worst.ratio:.3g} (t = {worst.start:.2f} .. "
+            f"{worst.end:.2f} s) against a median of {median:.3g}, at t = {_span_text(spans)}: measurements the "
+            "model does not explain there (a slip, a bump, an outlier burst, a sensor on another clock); look at "
+            "the residual plot there, and consider a robust loss on the factors involved")
+    return [SolveWarning("local_misfit", text, (spans[0][0], spans[-1][1]))], None
+
+
+def window_length(settings: dict, problem: Problem) -> float:
+    """The fit check's window: the fixed-lag smoother's lag; otherwise a twentieth of the run, at least 1 s."""
+    if settings["type"] == "fixed_lag":
+        return float(settings["lag"])
+    times = [r.time for r in problem.records if np.isfinite(r.time)]
+    return max(1.0, (max(times) - min(times)) / 20) if times else 1.0
+
+
+def _merge(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    out: list[list[float]] = []
+    for a, b in sorted(spans):
+        if out and a <= out[-1][1] + 1e-9:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return [(a, b) for a, b in out]
+
+
+def _spans(times: list[float], gap: float = 1.0) -> list[tuple[float, float]]:
+    """Times grouped into spans (first, last) where consecutive ones are at most `gap` s apart."""
+    out: list[list[float]] = []
+    for t in sorted(times):
+        if out and t - out[-1][1] <= gap:
+            out[-1][1] = t
+        else:
+            out.append([t, t])
+    return [(a, b) for a, b in out]
+
+
+def _span_text(spans: list[tuple[float, float]], most: int = 4) -> str:
+    text = ", ".join(f"{a:.2f} .. {b:.2f} s" for a, b in spans[:most])
+    return text + (f" and {len(spans) - most} more" if len(spans) > most else "")
