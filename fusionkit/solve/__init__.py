@@ -47,7 +47,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     result.rejection = check_solution(problem, graph, result.values, result.initial_error, result.final_error,
                                       settings["max_cost_ratio"], allowed_rise)
     result.chi2_per_dof = chi_square_per_dof(graph, result.values, result.final_error)
-    warnings, why = health(problem, result.values, settings, result.revisions)
+    warnings, why = health(problem, result.values, settings, result.revisions, result.static_snapshots)
     result.warnings += warnings
     result.rejection = result.rejection or why
     if settings["marginals"] and kind != "fixed_lag":

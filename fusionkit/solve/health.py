@@ -7,15 +7,17 @@ far from its prediction) and still end with a plausible total cost. The checks:
 
 - **fit per window** (`window_fit`, `misfit_windows`): the run is cut into windows (fixed-lag: `solver.lag`
   seconds; otherwise a twentieth of the run, at least a second) by factor time; each window's chi-square per
-  degree of freedom at the estimate (for the fixed-lag smoother: each state as it left the window), dof = its
-  factors' dimensions minus its states'. A window misfits when its ratio is both WINDOW_FACTOR times the
-  median window's (at least 1) and beyond the chi-square's 1 - WINDOW_P quantile for its dof.
-- **lost track or the data** (`fit_check`): a misfit has two causes, the data (a wheel slip, an outlier burst
-  the model does not explain: the best fit misfits there too) or the solver. For an incremental run the whole
-  graph is polished by Levenberg-Marquardt from its estimate; windows the polish fits clearly better (chi-square
-  down by more than the 1 - WINDOW_P quantile, to less than half) are where the solver lost track: the run is
-  rejected, the span named (warning `incremental_fit`). Otherwise, and always for batch, a warning
-  `local_misfit` names the span. The polish runs only when a window misfits.
+  degree of freedom, dof = its factors' dimensions minus its states'. For the fixed-lag smoother, a window is
+  judged as the smoother believed it when the window was complete: its estimate at the first update at or after
+  the window's end (which holds the window's states and the static variables; states before it as they left).
+  A window is beyond chance when its chi-square passes the 1 - WINDOW_P quantile for its dof, and misfits when it is also WINDOW_FACTOR times the median window's ratio (at least 1).
+- **lost track or the data** (`fit_check`): a window that fits badly has two causes, the data (a wheel slip, an
+  outlier burst the model does not explain: the best fit misfits there too) or the solver. For an incremental
+  run with a window beyond chance, the whole graph is polished by Levenberg-Marquardt from its estimate (the
+  cost of a batch solve started near its end); windows the polish fits clearly better (chi-square down by more
+  than the 1 - WINDOW_P quantile, and chi2/dof WINDOW_FACTOR times the best fit's, at least 1) are where the solver lost track: the run is rejected, the
+  span named (warning `incremental_fit`). Misfit windows otherwise, and always for batch (its estimate is the
+  best fit), are a warning `local_misfit` naming the span.
 - **revisions beyond sigma** (`RevisionMonitor`, `jump_check`): after each time step, the estimate and marginal
   covariance of the newest state of each robot and of every static variable are kept; at the next step, the
   revision of each (Delta^T P^-1 Delta, Delta in its tangent space) is the update's innovation seen in the
@@ -139,12 +141,13 @@ def first_jump(revisions: list[Revision]) -> Revision | None:
     return next((r for r in revisions if r.jump), None)
 
 
-def health(problem: Problem, values: gtsam.Values, settings: dict, revisions: list[Revision] | None = None
-           ) -> tuple[list[SolveWarning], str | None]:
+def health(problem: Problem, values: gtsam.Values, settings: dict, revisions: list[Revision] | None = None,
+           snapshots: list[tuple[float, gtsam.Values]] | None = None) -> tuple[list[SolveWarning], str | None]:
     """The checks of a solve: (their warnings, why the run is rejected or None). Batch: the fit per window;
-    incremental: also confirmed by a polish (fit_check) and the revisions (jump_check)."""
+    incremental: also confirmed by a polish (fit_check) and the revisions (jump_check). `snapshots`: the
+    fixed-lag smoother's static variables as each state left (window_fit)."""
     incremental = settings["type"] != "batch"
-    warnings, rejection = fit_check(problem, values, window_length(settings, problem), incremental)
+    warnings, rejection = fit_check(problem, values, window_length(settings, problem), incremental, snapshots)
     return warnings + jump_check(problem, revisions or []), rejection
 
 
@@ -159,32 +162,63 @@ class Window:
     def ratio(self) -> float:
         return self.chi2 / self.dof
 
+    @property
+    def beyond_chance(self) -> bool:
+        return self.chi2 > chi2.ppf(1 - WINDOW_P, self.dof)
 
-def window_fit(problem: Problem, values: gtsam.Values, length: float) -> list[Window]:
+
+def window_fit(problem: Problem, values: gtsam.Values, length: float,
+               snapshots: list[tuple[float, gtsam.Values]] | None = None) -> list[Window]:
     """Chi-square and degrees of freedom of the factors in each window of `length` seconds (by factor time;
-    static-only factors in none) at `values`; windows without redundancy are left out."""
+    static-only factors in none) at `values`; windows without redundancy are left out. With `snapshots` (a
+    fixed-lag run: `values` holds each state as it left the window), a window's factors are evaluated at the
+    first snapshot at or after its end (the smoother's estimate then, `values` for what it no longer held): what
+    the smoother believed of that window; the windows after the last snapshot at `values`."""
     times = np.array([r.time for r in problem.records])
     timed = np.isfinite(times)
     if not timed.any():
         return []
-    errors = problem.evaluator().record_errors(values)
-    dims = np.array([r.factor.dim() for r in problem.records])
     start = float(times[timed].min())
-    bins = np.floor((times[timed] - start) / length).astype(int)
-    chi = np.bincount(bins, weights=2 * errors[timed])
-    rows = np.bincount(bins, weights=dims[timed])
+    bins = np.full(len(times), -1)
+    bins[timed] = np.floor((times[timed] - start) / length).astype(int)
+    count = int(bins.max()) + 1
+    errors = _window_errors(problem, values, bins, count, start, length, snapshots or [])
+    dims = np.array([r.factor.dim() for r in problem.records])
+    chi = np.bincount(bins[timed], weights=2 * errors[timed], minlength=count)
+    rows = np.bincount(bins[timed], weights=dims[timed], minlength=count)
     key_times = np.array([t for t in problem.key_time.values()])
     key_dims = np.array([problem.keys.decode(k)[0].vartype.dim for k in problem.key_time])
     finite = np.isfinite(key_times) & (key_times >= start)
     key_bins = np.floor((key_times[finite] - start) / length).astype(int)
-    inside = key_bins < len(rows)
-    unknowns = np.bincount(key_bins[inside], weights=key_dims[finite][inside], minlength=len(rows))
+    inside = key_bins < count
+    unknowns = np.bincount(key_bins[inside], weights=key_dims[finite][inside], minlength=count)
     out = []
-    for b in range(len(rows)):
+    for b in range(count):
         dof = int(rows[b] - unknowns[b])
         if dof > 0:
             out.append(Window(start + b * length, start + (b + 1) * length, float(chi[b]), dof))
     return out
+
+
+def _window_errors(problem: Problem, values: gtsam.Values, bins: np.ndarray, count: int, start: float,
+                   length: float, snapshots: list[tuple[float, gtsam.Values]]) -> np.ndarray:
+    """Each record's error, at `values` updated with the snapshot its window takes."""
+    evaluator = problem.evaluator()
+    errors = evaluator.record_errors(values)
+    if not snapshots:
+        return errors
+    left = np.array([t for t, _ in snapshots])
+    chosen: dict[int, list[int]] = {}
+    for b in range(count):
+        i = int(np.searchsorted(left, start + (b + 1) * length - 1e-9))  # first snapshot at or after its end
+        if i < len(snapshots):
+            chosen.setdefault(i, []).append(b)
+    for i, window_bins in chosen.items():
+        at = gtsam.Values(values)
+        at.update(snapshots[i][1])
+        mask = np.isin(bins, window_bins)
+        errors[mask] = evaluator.record_errors(at)[mask]
+    return errors
 
 
 def misfit_windows(windows: list[Window]) -> tuple[list[Window], float]:
@@ -192,7 +226,7 @@ def misfit_windows(windows: list[Window]) -> tuple[list[Window], float]:
     if len(windows) < 2:
         return [], 1.0
     median = max(1.0, float(np.median([w.ratio for w in windows])))
-    return [w for w in windows if w.ratio > WINDOW_FACTOR * median and w.chi2 > chi2.ppf(1 - WINDOW_P, w.dof)], median
+    return [w for w in windows if w.ratio > WINDOW_FACTOR * median and w.beyond_chance], median
 
 
 def polished(problem: Problem, values: gtsam.Values) -> gtsam.Values | None:
@@ -206,36 +240,22 @@ def polished(problem: Problem, values: gtsam.Values) -> gtsam.Values | None:
     return out
 
 
-def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental: bool
-              ) -> tuple[list[SolveWarning], str | None]:
-    """Windows that fit far worse than the others (misfit_windows). Incremental: the whole graph is polished from
-    `values`; where that fits the same windows clearly better (a chi-square drop beyond the 1 - WINDOW_P
-    quantile, to less than half), the solver lost track there: rejection. Otherwise, and for batch, the data
-    there are what the model does not explain: a named warning."""
-    windows = window_fit(problem, values, length)
+def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental: bool,
+              snapshots: list[tuple[float, gtsam.Values]] | None = None) -> tuple[list[SolveWarning], str | None]:
+    """The windows of `length` s at `values` (window_fit). Incremental runs: every window beyond chance is compared
+    with the best fit of the whole graph (polished from `values`): where that fits clearly better (a chi-square
+    drop beyond the 1 - WINDOW_P quantile, and WINDOW_FACTOR times its chi2/dof, at least 1), the solver lost
+    track there: rejection. Windows
+    that fit far worse than the others (misfit_windows) but no better at the best fit, and for batch (its estimate
+    is the best fit) every such window: the data there are what the model does not explain, a named warning."""
+    windows = window_fit(problem, values, length, snapshots)
+    if incremental and any(w.beyond_chance for w in windows):
+        lost = _lost_track(problem, values, windows, length)
+        if lost is not None:
+            return lost
     failed, median = misfit_windows(windows)
     if not failed:
         return [], None
-    if incremental:
-        best = polished(problem, values)
-        refit = {(w.start, w.end): w for w in window_fit(problem, best, length)} if best is not None else {}
-        lost = [w for w in failed if (w.start, w.end) not in refit
-                or (w.chi2 - refit[(w.start, w.end)].chi2 > chi2.ppf(1 - WINDOW_P, w.dof)
-                    and refit[(w.start, w.end)].chi2 < 0.5 * w.chi2)]
-        if lost:
-            spans = _merge([(w.start, w.end) for w in lost])
-            worst = max(lost, key=lambda w: w.ratio)
-            after = refit.get((worst.start, worst.end))
-            text = (f"the estimate fits the data in {len(lost)} of {len(windows)} windows of {length:.3g} s far worse "
-                    f"than in the others and than the best fit of the same data does: chi-square per degree of "
-                    f"freedom up to {worst.ratio:.3g} (t = {worst.start:.2f} .. {worst.end:.2f} s; "
-                    + (f"{after.ratio:.3g} at the best fit" if after else "no best fit found")
-                    + f", median window {median:.3g}), at t = {_span_text(spans)}: the solver lost track there (a "
-                    "diverged update, a parameter frozen at a poor first estimate, a new state far from its "
-                    "prediction); try solver.new_states: carried, solver.warmup, a longer solver.lag, "
-                    "solver.updates_per_step, or the batch solver")
-            return [SolveWarning("incremental_fit", text, (spans[0][0], spans[-1][1]))], \
-                f"the incremental run failed its health check: {text}"
     spans = _merge([(w.start, w.end) for w in failed])
     worst = max(failed, key=lambda w: w.ratio)
     text = (f"the data in {len(failed)} of {len(windows)} windows of {length:.3g} s fit far worse than in the "
@@ -244,6 +264,35 @@ def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental
             "model does not explain there (a slip, a bump, an outlier burst, a sensor on another clock); look at "
             "the residual plot there, and consider a robust loss on the factors involved")
     return [SolveWarning("local_misfit", text, (spans[0][0], spans[-1][1]))], None
+
+
+def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], length: float
+                ) -> tuple[list[SolveWarning], str] | None:
+    """The windows beyond chance that the best fit from `values` explains clearly better: (the warning, the
+    rejection); None when there are none."""
+    best = polished(problem, values)
+    refit = {(w.start, w.end): w for w in window_fit(problem, best, length)} if best is not None else {}
+    lost = []
+    for w in windows:
+        if not w.beyond_chance:
+            continue
+        after = refit.get((w.start, w.end))
+        if after is None or (w.chi2 - after.chi2 > chi2.ppf(1 - WINDOW_P, w.dof)
+                             and w.ratio > WINDOW_FACTOR * max(1.0, after.ratio)):
+            lost.append((w, after))
+    if not lost:
+        return None
+    spans = _merge([(w.start, w.end) for w, _ in lost])
+    worst, after = max(lost, key=lambda pair: pair[0].ratio)
+    text = (f"the estimate fits the data in {len(lost)} of {len(windows)} windows of {length:.3g} s far worse than "
+            f"the best fit of the same data does: chi-square per degree of freedom up to {worst.ratio:.3g} (t = "
+            f"{worst.start:.2f} .. {worst.end:.2f} s; "
+            + (f"{after.ratio:.3g} at the best fit" if after else "no best fit found")
+            + f"), at t = {_span_text(spans)}: the solver lost track there (a diverged update, a parameter frozen "
+            "at a poor first estimate, a new state far from its prediction); try solver.new_states: carried, "
+            "solver.warmup, a longer solver.lag, solver.updates_per_step, or the batch solver")
+    return [SolveWarning("incremental_fit", text, (spans[0][0], spans[-1][1]))], \
+        f"the incremental run failed its health check: {text}"
 
 
 def window_length(settings: dict, problem: Problem) -> float:

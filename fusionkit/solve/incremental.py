@@ -263,6 +263,8 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     static = [k for k, t in problem.key_time.items() if t == float("-inf")]
     final: dict[int, object] = {}
     covariances: dict[int, np.ndarray] = {}
+    snapshots: list[tuple[float, gtsam.Values]] = []  # (time, the smoother's estimate then), once per lag
+    origin = min((r.time for r in problem.records if np.isfinite(r.time)), default=0.0)  # health.window_fit's
     latency = []
     start = time.perf_counter()
     now, est = None, gtsam.Values()  # est: the estimate handed out after the latest update
@@ -310,6 +312,8 @@ def solve_fixed_lag(problem: Problem, settings: dict,
         est, dt = _timed_step(problem, now, lambda: update(records, values, stamps, leaving), monitor)
         _check_marginalized(problem, set(window) | set(stamps), set(smoother.timestamps()), set(leaving))
         monitor.step(now, new, est, smoother.getISAM2())
+        while now >= origin + (len(snapshots) + 1) * lag - 1e-9:  # windows of the health check completed
+            snapshots.append((now, gtsam.Values(est)))
         if i == 0 and warm_values is not None:
             warmup += dt
         else:
@@ -327,4 +331,4 @@ def solve_fixed_lag(problem: Problem, settings: dict,
     return SolveResult(estimate, "fixed_lag", cost(problem.initial), cost(estimate), len(latency),
                        seconds, covariances=covariances, step_latency=np.asarray(latency), warmup_seconds=warmup,
                        factorization=settings["factorization"], warnings=warnings, swaps=containers.swap_statistics(),
-                       revisions=monitor.revisions)
+                       revisions=monitor.revisions, static_snapshots=snapshots)

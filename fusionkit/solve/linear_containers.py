@@ -165,7 +165,8 @@ class LinearContainers:
         if not some.any():
             return {}
         share = swaps[some] / held[some]
-        return {"updates": int(some.sum()), "per_update_p50": float(np.median(swaps[some])),
+        return {"updates": int(some.sum()), "updates_with_swaps": int((swaps[some] > 0).sum()),
+                "per_update_p50": float(np.median(swaps[some])),
                 "per_update_max": int(swaps[some].max()), "share_p50": float(np.median(share)),
                 "fixed_variables_held_per_update_p50": float(np.median(np.asarray(self.held)[some]))}
 

@@ -50,6 +50,8 @@ class SolveResult:
     warnings: list[SolveWarning] = field(default_factory=list)
     swaps: dict = field(default_factory=dict)  # incremental: LinearContainers.swap_statistics()
     revisions: list = field(default_factory=list)  # incremental: health.Revision per time step
+    # fixed-lag: (time, the smoother's whole estimate then) once per lag, when a health-check window is complete
+    static_snapshots: list[tuple[float, gtsam.Values]] = field(default_factory=list)
 
     @property
     def sigma0(self) -> float | None:
