@@ -15,8 +15,10 @@ far from its prediction) and still end with a plausible total cost. The checks:
   outlier burst the model does not explain: the best fit misfits there too) or the solver. For an incremental
   run with a window beyond chance, the whole graph is polished by Levenberg-Marquardt from its estimate (the
   cost of a batch solve started near its end); windows the polish fits clearly better (chi-square down by more
-  than the 1 - WINDOW_P quantile, and chi2/dof WINDOW_FACTOR times the best fit's, at least 1) are where the solver lost track: the run is rejected, the
-  span named (warning `incremental_fit`). Misfit windows otherwise, and always for batch (its estimate is the
+  than the 1 - WINDOW_P quantile, and chi2/dof WINDOW_FACTOR times the best fit's, at least 1) are where the
+  solver lost track (warning `incremental_fit`, the spans named); in more than LOST_SHARE of the windows, or
+  GROSS_FACTOR times worse than the best fit in one, the run is rejected (one window lost and recovered is a
+  warning). Misfit windows otherwise, and always for batch (its estimate is the
   best fit), are a warning `local_misfit` naming the span.
 - **revisions beyond sigma** (`RevisionMonitor`, `jump_check`): after each time step, the estimate and marginal
   covariance of the newest state of each robot and of every static variable are kept; at the next step, the
@@ -41,6 +43,8 @@ from .result import SolveWarning
 WINDOW_FACTOR = 10.0  # a window's chi2/dof this many times the median window's (at least 1) fails
 WINDOW_P = 1e-6  # ... when also beyond the chi-square's 1 - WINDOW_P quantile for its dof
 JUMP_P = 1e-4  # a revision beyond the chi-square's 1 - JUMP_P quantile for the variable's dimension is a jump
+LOST_SHARE = 0.05  # lost track in more than this share of the windows: the run is rejected (fewer: a warning)
+GROSS_FACTOR = 100.0  # ... or in one window this many times worse than the best fit (at least 1 per dof)
 POLISH_ITERATIONS = 30  # Levenberg-Marquardt iterations of the polish that confirms a lost track
 MONITORED_DIM = 60  # static variables watched for jumps, at most this total dimension (the covariances cost)
 
@@ -146,8 +150,7 @@ def health(problem: Problem, values: gtsam.Values, settings: dict, revisions: li
     """The checks of a solve: (their warnings, why the run is rejected or None). Batch: the fit per window;
     incremental: also confirmed by a polish (fit_check) and the revisions (jump_check). `snapshots`: the
     fixed-lag smoother's static variables as each state left (window_fit)."""
-    incremental = settings["type"] != "batch"
-    warnings, rejection = fit_check(problem, values, window_length(settings, problem), incremental, snapshots)
+    warnings, rejection = fit_check(problem, values, window_length(settings, problem), settings, snapshots)
     return warnings + jump_check(problem, revisions or []), rejection
 
 
@@ -240,7 +243,7 @@ def polished(problem: Problem, values: gtsam.Values) -> gtsam.Values | None:
     return out
 
 
-def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental: bool,
+def fit_check(problem: Problem, values: gtsam.Values, length: float, settings: dict,
               snapshots: list[tuple[float, gtsam.Values]] | None = None) -> tuple[list[SolveWarning], str | None]:
     """The windows of `length` s at `values` (window_fit). Incremental runs: every window beyond chance is compared
     with the best fit of the whole graph (polished from `values`): where that fits clearly better (a chi-square
@@ -249,8 +252,8 @@ def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental
     that fit far worse than the others (misfit_windows) but no better at the best fit, and for batch (its estimate
     is the best fit) every such window: the data there are what the model does not explain, a named warning."""
     windows = window_fit(problem, values, length, snapshots)
-    if incremental and any(w.beyond_chance for w in windows):
-        lost = _lost_track(problem, values, windows, length)
+    if settings["type"] != "batch" and any(w.beyond_chance for w in windows):
+        lost = _lost_track(problem, values, windows, length, settings)
         if lost is not None:
             return lost
     failed, median = misfit_windows(windows)
@@ -266,10 +269,22 @@ def fit_check(problem: Problem, values: gtsam.Values, length: float, incremental
     return [SolveWarning("local_misfit", text, (spans[0][0], spans[-1][1]))], None
 
 
-def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], length: float
-                ) -> tuple[list[SolveWarning], str] | None:
+def remedies(settings: dict) -> str:
+    """What an incremental run that lost track can try, leaving out what `settings` already do."""
+    out = [] if settings.get("new_states") == "carried" else ["solver.new_states: carried"]
+    out += ["solver.warmup" if not settings.get("warmup") else "a longer solver.warmup"]
+    if settings.get("type") == "fixed_lag":
+        out.append("a longer solver.lag")
+    if settings.get("updates_per_step", 1) < 2:
+        out.append("solver.updates_per_step: 2")
+    return ", ".join(out) + ", or the batch solver"
+
+
+def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], length: float, settings: dict
+                ) -> tuple[list[SolveWarning], str | None] | None:
     """The windows beyond chance that the best fit from `values` explains clearly better: (the warning, the
-    rejection); None when there are none."""
+    rejection when they are more than LOST_SHARE of the windows or one is GROSS_FACTOR times worse than the best
+    fit, else None); None when there are none."""
     best = polished(problem, values)
     refit = {(w.start, w.end): w for w in window_fit(problem, best, length)} if best is not None else {}
     lost = []
@@ -282,6 +297,8 @@ def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], l
             lost.append((w, after))
     if not lost:
         return None
+    rejected = (len(lost) > LOST_SHARE * len(windows)
+                or any(after is None or w.ratio > GROSS_FACTOR * max(1.0, after.ratio) for w, after in lost))
     spans = _merge([(w.start, w.end) for w, _ in lost])
     worst, after = max(lost, key=lambda pair: pair[0].ratio)
     text = (f"the estimate fits the data in {len(lost)} of {len(windows)} windows of {length:.3g} s far worse than "
@@ -289,10 +306,11 @@ def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], l
             f"{worst.start:.2f} .. {worst.end:.2f} s; "
             + (f"{after.ratio:.3g} at the best fit" if after else "no best fit found")
             + f"), at t = {_span_text(spans)}: the solver lost track there (a diverged update, a parameter frozen "
-            "at a poor first estimate, a new state far from its prediction); try solver.new_states: carried, "
-            "solver.warmup, a longer solver.lag, solver.updates_per_step, or the batch solver")
-    return [SolveWarning("incremental_fit", text, (spans[0][0], spans[-1][1]))], \
-        f"the incremental run failed its health check: {text}"
+            f"at a poor first estimate, a new state far from its prediction); try {remedies(settings)}")
+    warning = SolveWarning("incremental_fit", text, (spans[0][0], spans[-1][1]))
+    if not rejected:
+        return [warning], None
+    return [warning], f"the incremental run failed its health check: {text}"
 
 
 def window_length(settings: dict, problem: Problem) -> float:

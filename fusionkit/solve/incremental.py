@@ -29,7 +29,7 @@ from ..graph.evaluator import GraphEvaluator
 from ..graph.keys import STATE
 from .checks import check_constrained, unconstrained_message
 from .covariance_recovery import tree_marginals
-from .health import RevisionMonitor, first_jump
+from .health import RevisionMonitor, first_jump, remedies
 from .linear_containers import LinearContainers
 from .result import SolveResult, SolveWarning
 
@@ -92,7 +92,10 @@ def warm_start(problem: Problem, steps: list, settings: dict) -> tuple[list, gts
     return records, values, last, rest
 
 
-def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float, monitor: RevisionMonitor | None):
+def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float, monitor: RevisionMonitor | None,
+                         settings: dict):
+    """GTSAM's indeterminate system in an update at `t` as a SolverError: a divergence when `monitor` saw the
+    estimates go astray before, else the variable GTSAM names; other errors as they are."""
     msg = unconstrained_message(problem, exc)
     if msg is None:
         raise exc
@@ -102,14 +105,13 @@ def _raise_unconstrained(problem: Problem, exc: RuntimeError, t: float, monitor:
             f"the incremental solve diverged: GTSAM found the linear system indeterminate while adding the "
             f"measurements at t={t:.3f} s, after the estimates had gone astray from t = {astray.t:.2f} s "
             f"({problem.keys.name_of(astray.key)} revised by {np.sqrt(astray.d2):.3g} sigma by the next update); "
-            "not a missing constraint: try solver.new_states: carried (new states predicted from the current "
-            "estimate), solver.warmup, solver.updates_per_step, or the batch solver") from None
+            f"not a missing constraint: try {remedies(settings)}") from None
     raise SolverError(f"{msg} (while adding the measurements at t={t:.3f} s incrementally: a variable the whole "
                       "graph constrains may not be constrained yet by the measurements so far; static parameters "
                       "need a prior until the data constrain them, or solver.warmup)") from None
 
 
-def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values],
+def _timed_step(problem: Problem, settings: dict, t: float, update: Callable[[], gtsam.Values],
                 monitor: RevisionMonitor | None = None) -> tuple[gtsam.Values, float]:
     """Run one solver update, which returns the estimate it hands out; return (estimate, wall time in s),
     turning an indeterminate system into a SolverError (a divergence when `monitor` saw the estimates go astray)."""
@@ -117,7 +119,7 @@ def _timed_step(problem: Problem, t: float, update: Callable[[], gtsam.Values],
     try:
         values = update()
     except RuntimeError as exc:
-        _raise_unconstrained(problem, exc, t, monitor)
+        _raise_unconstrained(problem, exc, t, monitor, settings)
     return values, time.perf_counter() - tic
 
 
@@ -229,11 +231,11 @@ def solve_isam2(problem: Problem, settings: dict, progress: Callable[[int, float
     if settings["warmup"] > 0:
         tic = time.perf_counter()
         first, values, t, steps = warm_start(problem, steps, settings)
-        estimate, _ = _timed_step(problem, t, lambda: _isam2_update(isam, containers, first, values))
+        estimate, _ = _timed_step(problem, settings, t, lambda: _isam2_update(isam, containers, first, values))
         warmup = time.perf_counter() - tic
     monitor = RevisionMonitor(problem)
     for i, (t, records, new) in enumerate(steps):
-        estimate, dt = _timed_step(problem, t, lambda: _isam2_step(
+        estimate, dt = _timed_step(problem, settings, t, lambda: _isam2_step(
             isam, containers, records, new_values(problem, settings, new, estimate), settings["updates_per_step"]),
             monitor)
         latency.append(dt)
@@ -309,7 +311,7 @@ def solve_fixed_lag(problem: Problem, settings: dict,
             final[k] = vt.read(est, k) if est.exists(k) else vt.read(values, k)
             if marginal_keys and k in marginal_keys and est.exists(k):
                 covariances[k] = smoother.marginalCovariance(k)
-        est, dt = _timed_step(problem, now, lambda: update(records, values, stamps, leaving), monitor)
+        est, dt = _timed_step(problem, settings, now, lambda: update(records, values, stamps, leaving), monitor)
         _check_marginalized(problem, set(window) | set(stamps), set(smoother.timestamps()), set(leaving))
         monitor.step(now, new, est, smoother.getISAM2())
         while now >= origin + (len(snapshots) + 1) * lag - 1e-9:  # windows of the health check completed

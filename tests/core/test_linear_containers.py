@@ -92,10 +92,10 @@ def test_incremental_estimates_with_containers_match_the_one_by_one_factors(runs
 @pytest.mark.slow
 def test_fixed_lag_relinearizes_few_tracked_factors_per_update_unless_told_to_relinearize_frozen_variables(runs):
     """GTSAM holds a variable on a marginal factor (the VO scale once the first state left the window) at its
-    frozen point; so do the containers: the median update swaps a few of the ~60 tracked factors (measured 1 of
-    90 at 20 s), not all of them as when the frozen scale is relinearized (relinearize_marginal_variables)."""
+    frozen point; so do the containers: the median update swaps a few of the tracked factors (measured 1 of 89,
+    1.1 %, at 8 s), not all of them as when the frozen scale is relinearized (relinearize_marginal_variables)."""
     held, relinearized = runs["fixed_lag"].solution.swaps, runs["fixed_lag_relinearized"].solution.swaps
-    assert held["updates"] > 200 and held["share_p50"] < 0.1 and held["fixed_variables_held_per_update_p50"] >= 1
+    assert held["updates"] > 200 and held["share_p50"] < 0.1 and held["fixed_variables_held_per_update_p50"] > 0
     assert relinearized["share_p50"] > 0.9 and relinearized["fixed_variables_held_per_update_p50"] == 0
 
 
