@@ -5,6 +5,9 @@ a frozen variable relinearized at its current estimate whenever its step passes 
 this process. Per run: tracked Python factors removed and re-added per update (p50, and their share of those the
 smoother held), per-update latency p50/p99 (SolveResult.step_latency), ATE, status. The median over runs.
 
+Also the consistency of the sigmas over seeds (research/fixed_lag_nees.py), with the noise stated right and with
+the VO stated twice as precise as it is.
+
 Configs: configs/scaled_vo_mocap.yaml at 20 s with a 3 s lag (the calibration parameter: the VO scale), and the
 wheels simulator's figure eight (30 s) with the camera, per wheel step at 20 Hz (2 updates per step) and
 preintegrated at 2 Hz (both with a 5 s warm-up and a 5 s lag, as in bench_wheels_speed.py)."""
@@ -19,6 +22,7 @@ from fusionkit.simulate import simulated_config
 
 from _timing import latency_percentiles, median_of, run_parts, table
 from bench_wheels_speed import CAMERA, preintegrated
+from research.fixed_lag_nees import IDEAL, VO_SIGMA_HALVED, shares
 
 SCALED_VO = "configs/scaled_vo_mocap.yaml"
 MODES = {"held (default)": False, "relinearized": True}
@@ -72,11 +76,22 @@ def compare(name: str, run, repeats: int) -> tuple[str, dict]:
     return text, raw
 
 
+def nees(seeds) -> tuple[str, dict]:
+    """Inside 1/2/3 sigma over `seeds` (research/fixed_lag_nees.py), the noise stated right and the VO's halved."""
+    raw = {"self-consistency": shares(seeds), "VO sigma stated half its true value": shares(seeds, VO_SIGMA_HALVED)}
+    rows = [[f"{noise}: {what}", *(f"{v:.1f}" for v in r[what])] for noise, r in raw.items()
+            for what in ("positions", "scale", "pooled")]
+    rows.append(["Gaussian", *(f"{v:.1f}" for v in IDEAL)])
+    return table(["scaled VO fixed-lag (8 s, lag 3 s)", "1 sigma %", "2 sigma %", "3 sigma %"], rows,
+                 f"fixed-lag consistency over {len(seeds)} seeds (positions per axis, every 15th state)"), raw
+
+
 def run(quick: bool) -> dict:
     repeats = 1 if quick else 3
     duration = 10.0 if quick else 20.0
     wheels = 20.0 if quick else 30.0
     return run_parts({
+        "nees": lambda: nees(range(10 if quick else 50)),
         "scaled_vo": lambda: compare(f"scaled VO, {duration:.0f} s, lag 3 s", lambda r: _scaled_vo(r, duration),
                                      repeats),
         "wheels_per_step": lambda: compare(f"wheels per step + camera, {wheels:.0f} s, lag 5 s, 2 updates/step",
@@ -88,6 +103,11 @@ def run(quick: bool) -> dict:
 def summary(results: dict) -> list[str]:
     out = []
     for part, raw in results["raw"].items():
+        if part == "nees":
+            p = raw["self-consistency"]["positions"]
+            out.append(f"fixed_lag consistency: positions inside 1/2/3 sigma {p[0]:.1f}/{p[1]:.1f}/{p[2]:.1f} % "
+                       "(self-consistency)")
+            continue
         held, old = raw["held (default)"], raw["relinearized"]
         out.append(f"fixed_lag {part}: swaps/update p50 {old['swaps_p50']:.0f} -> {held['swaps_p50']:.0f} "
                    f"(share {old['share_p50'] * 100:.0f} % -> {held['share_p50'] * 100:.0f} %), latency p50 "

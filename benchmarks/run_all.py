@@ -14,6 +14,7 @@ wheels_speed (10,000 wheel steps in batch, per step and preintegrated; fixed-lag
 wheels_sim (the wheel graph against the rule-based odometers over 50 simulated runs per fault class),
 time_offset (clock offsets estimated in the graph: lagging cable encoders held out, z-scores, UWB, cost),
 epuck (IR localization in a known arena against dead reckoning, ablations, single scans, fitting tools, fixed-lag speed),
+fixed_lag (the smoother's frozen variables held or relinearized: swaps and latency per update; its sigmas over seeds),
 busy_core (the quickstart with another process keeping one core busy).
 See benchmarks/README.md.
 """
@@ -36,7 +37,7 @@ sys.path.insert(0, str(HERE))
 import numpy as np  # noqa: E402
 
 SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real",
-            "wheels_speed", "wheels_sim", "time_offset", "epuck", "sweep", "busy_core")
+            "wheels_speed", "wheels_sim", "time_offset", "epuck", "fixed_lag", "sweep", "busy_core")
 
 
 def _git(*args: str) -> str:

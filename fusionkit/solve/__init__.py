@@ -7,9 +7,9 @@ import numpy as np
 from ..graph.builder import Problem
 from ..progress import Progress
 from .batch import solve_batch
-from .checks import check_solution, chi_square_per_dof
+from .checks import check_solution, chi_square_per_dof, residual_dimension
 from .covariance_recovery import recovered_marginals, tree_marginals
-from .health import health
+from .health import health, noise_check
 from .factorization import resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
 from .result import SolveResult
@@ -48,6 +48,9 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
                                       settings["max_cost_ratio"], allowed_rise)
     result.chi2_per_dof = chi_square_per_dof(graph, result.values, result.final_error)
     warnings, why = health(problem, result.values, settings, result.revisions, result.static_snapshots)
+    if result.chi2_per_dof is not None:
+        dof = residual_dimension(graph) - result.values.dim()
+        warnings = noise_check(problem, result.values, result.chi2_per_dof * dof, dof) + warnings
     result.warnings += warnings
     result.rejection = result.rejection or why
     if settings["marginals"] and kind != "fixed_lag":

@@ -140,6 +140,26 @@ def jump_check(problem: Problem, revisions: list[Revision]) -> list[SolveWarning
     return [SolveWarning("incremental_jumps", text, (spans[0][0], spans[-1][1]))]
 
 
+def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: int) -> list[SolveWarning]:
+    """A warning when the chi-square is below its WINDOW_P quantile for `dof`: the residuals scatter far less
+    than the sigmas say, so every reported sigma is too large (the estimate itself is not wrong)."""
+    if dof <= 0 or chi2_total >= chi2.ppf(WINDOW_P, dof):
+        return []
+    per_dof = chi2_total / dof
+    text = (f"chi-square per degree of freedom {per_dof:.3g} is far below 1 (below its {WINDOW_P:g} quantile for "
+            f"{dof} degrees of freedom): the residuals scatter about {1 / np.sqrt(max(per_dof, 1e-300)):.3g} times "
+            "less than the sigmas say, so the reported sigmas are that much too large; check the factors' sigmas "
+            f"(largest cost share: {_largest_entry(problem, values)}), or set solver.a_posteriori_sigmas: true")
+    return [SolveWarning("noise_overstated", text)]
+
+
+def _largest_entry(problem: Problem, values: gtsam.Values) -> str:
+    totals: dict[str, float] = {}
+    for r, error in zip(problem.records, problem.evaluator().record_errors(values)):
+        totals[str(r.label)] = totals.get(str(r.label), 0.0) + error
+    return max(totals, key=totals.get) if totals else "-"
+
+
 def first_jump(revisions: list[Revision]) -> Revision | None:
     """The earliest revision beyond its sigmas, if any: where an incremental run that later fails went astray."""
     return next((r for r in revisions if r.jump), None)
