@@ -24,8 +24,8 @@ as soon as the first state leaves the window. fusionkit mirrors both: a fixed va
 at its frozen point, as GTSAM's own factors on it are, so each variable has one linearization point (the
 consistency first-estimate Jacobians exist for). `solver.relinearize_marginal_variables: true` instead
 linearizes the Python factors on fixed variables at their current estimate whenever their step passes the
-threshold (fusionkit before 0.2): two linearization points for one variable, and on a scaled-VO fixed-lag run
-the scale's factors swapped at every update (benchmarks/bench_fixed_lag_swaps.py)."""
+threshold (fusionkit before commit d5a7bf9): two linearization points for one variable, and on a scaled-VO fixed-lag run
+the scale's factors swapped at every update (benchmarks/bench_fixed_lag.py)."""
 
 from __future__ import annotations
 
