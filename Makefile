@@ -6,10 +6,13 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: setup bytecode quickstart test test-slow bench clean
 
+# setuptools tells every editable install whose packages map folders (plugins/ -> fusionkit_plugins) that
+# folders named like a package in the working directory may shadow it: information only (InformationOnly), a
+# dozen lines on every first make; the filter matches that message alone.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
 setup: $(STAMP)

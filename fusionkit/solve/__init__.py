@@ -7,12 +7,14 @@ import numpy as np
 from ..graph.builder import Problem
 from ..progress import Progress
 from .batch import solve_batch
-from .checks import check_solution, chi_square_per_dof, residual_dimension
+from .checks import check_constrained, check_solution, chi_square_per_dof, indeterminate, residual_dimension
 from .covariance_recovery import recovered_marginals, tree_marginals
-from .health import health, noise_check
+from .health import health
+from .noise_check import noise_check
+from .prior_check import prior_check
 from .factorization import resolved_ordering
 from .incremental import solve_fixed_lag, solve_isam2
-from .result import SolveResult
+from .result import SolveResult, SolveWarning
 
 FIXED_LAG_ALLOWED_RISE = 9.0  # relative: a fixed-lag median factor cost ten times the initial one is divergence
 
@@ -22,8 +24,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     """Solve with the configured solver, check the solution, and attach covariances of `marginal_keys`.
     `settings`: the `solver:` section with its defaults (config.loader.solver_settings)."""
     kind = settings["type"]
-    if kind == "batch":
-        settings = {**settings, "ordering": resolved_ordering(settings["ordering"], problem.evaluator().largest_degree())}
+    settings = {**settings, "ordering": resolved_ordering(settings["ordering"], problem.evaluator().largest_degree())}
     if progress:
         progress.stage(f"solving ({kind})")
     if kind == "batch":
@@ -50,7 +51,7 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     warnings, why = health(problem, result.values, settings, result.revisions, result.static_snapshots)
     if result.chi2_per_dof is not None:
         dof = residual_dimension(graph) - result.values.dim()
-        warnings = noise_check(problem, result.values, result.chi2_per_dof * dof, dof) + warnings
+        warnings = noise_check(problem, result.values, result.chi2_per_dof * dof, dof, settings) + warnings
     result.warnings += warnings
     result.rejection = result.rejection or why
     if settings["marginals"] and kind != "fixed_lag":
@@ -59,17 +60,30 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
         if kind == "batch" and result.factorization == "qr":
             result.covariances = recovered_marginals(problem.evaluator(), result.values, marginal_keys, settings["ordering"])
         else:
-            result.covariances = marginal_covariances(problem, result, marginal_keys)
+            result.covariances = marginal_covariances(problem, result, marginal_keys, settings["ordering"])
+        result.warnings += prior_check(problem, result.values, result.covariances)
         if settings["a_posteriori_sigmas"] and result.chi2_per_dof is not None:
             result.covariances = {k: c * result.chi2_per_dof for k, c in result.covariances.items()}
             result.sigmas_scaled = True
     return result
 
 
-def marginal_covariances(problem: Problem, result: SolveResult, keys: set[int]) -> dict[int, np.ndarray]:
-    """Marginal covariance (tangent space at the estimate) of each key."""
+def marginal_covariances(problem: Problem, result: SolveResult, keys: set[int],
+                         ordering: str = "colamd") -> dict[int, np.ndarray]:
+    """Marginal covariance (tangent space at the estimate) of each key. Where Cholesky finds the system at the
+    estimate indeterminate, its rank decides: a direction the factors leave free there is a SolverError naming it;
+    at full rank the covariances come from QR, and an `ill_conditioned` warning says so."""
     if not keys:
         return {}
-    if result.marginal is None:
-        return tree_marginals(problem.evaluator(), result.values, keys)
-    return {k: np.asarray(result.marginal(k)) for k in keys}
+    try:
+        if result.marginal is None:
+            return tree_marginals(problem.evaluator(), result.values, keys)
+        return {k: np.asarray(result.marginal(k)) for k in keys}
+    except RuntimeError as exc:
+        if not indeterminate(exc):
+            raise
+    checked = check_constrained(problem, problem.graph(), False, ordering, result.values,
+                                instead="the covariances at the estimate come from QR instead")
+    if checked.warning:
+        result.warnings.append(SolveWarning("ill_conditioned", f"at the estimate: {checked.warning}"))
+    return recovered_marginals(problem.evaluator(), result.values, keys, ordering)

@@ -44,40 +44,46 @@ class CheckedSystem:
         return self.linear, self.tree
 
 
-def _indeterminate(exc: RuntimeError) -> bool:
+def indeterminate(exc: RuntimeError) -> bool:
+    """Whether `exc` is GTSAM's indeterminate-system error."""
     return _KEY_IN_MESSAGE.search(str(exc)) is not None
 
 
 def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: bool = False,
-                      ordering: str = "colamd") -> CheckedSystem:
-    """Every variable must appear in a factor, and the whitened Jacobian at the initial values must have full
-    rank, whatever the factorization (solve/rank.py): a direction no factor constrains is a SolverError naming
-    the variables that move in it. Cholesky (`qr` False) that fails, or keeps too few digits, on a system of full
-    rank is ill-conditioning, not a missing constraint: the solve then uses QR, and `warning` says so."""
+                      ordering: str = "colamd", values: gtsam.Values | None = None,
+                      instead: str = "solved by QR instead") -> CheckedSystem:
+    """Every variable must appear in a factor, and the whitened Jacobian at `values` (default: the initial
+    values) must have full rank, whatever the factorization (solve/rank.py): a direction no factor constrains is
+    a SolverError naming the variables that move in it. Cholesky (`qr` False) that fails, or keeps too few
+    digits, on a system of full rank is ill-conditioning, not a missing constraint: QR is used (`instead` says
+    for what), and `warning` says so."""
+    values = problem.initial if values is None else values
     used = set(graph.keyVector())
-    for key in problem.initial.keys():
+    for key in values.keys():
         if key not in used:
             raise SolverError(f"variable {problem.keys.name_of(key)} appears in no factor: add a factor that "
                               "measures it, or remove what declares it")
-    linear = problem.evaluator().linearize(problem.initial)
+    linear = problem.evaluator().linearize(values)
     order = elimination_order(linear, ordering)
     try:
         tree = eliminate(linear, qr, order)
     except RuntimeError as exc:
-        if not _indeterminate(exc):
+        if not indeterminate(exc):
             raise
         tree = None
-    if not qr and tree is not None and smallest_ratio(tree, linear, problem.initial) >= CHOLESKY_SUSPECT:
+    if not qr and tree is not None and smallest_ratio(tree, linear, values) >= CHOLESKY_SUSPECT:
         return CheckedSystem(linear, tree, False)
-    rank = rank_check(linear, problem.initial, tree if qr else None, order)
+    rank = rank_check(linear, values, tree if qr else None, order)
     if rank.deficiency:
-        raise SolverError(unconstrained_text(problem.keys, rank, problem.initial.keys()))
+        where = "" if values is problem.initial else "at the solver's estimate, "
+        raise SolverError(where + unconstrained_text(problem.keys, rank, values.keys()))
     try:
         qr_tree = tree if qr and tree is not None else eliminate(linear, True, order)
     except RuntimeError as exc:
-        if not _indeterminate(exc):
+        if not indeterminate(exc):
             raise
-        raise SolverError(f"GTSAM's QR found the system at the initial values indeterminate, but no direction of the "
+        at = "the initial values" if values is problem.initial else "the estimate"
+        raise SolverError(f"GTSAM's QR found the system at {at} indeterminate, but no direction of the "
                           f"whitened Jacobian is free to {RANK_TOLERANCE:g} (smallest column-scaled ratio "
                           f"{rank.smallest_ratio:.2g}): {unconstrained_message(problem, exc)}") from None
     if qr:
@@ -87,7 +93,7 @@ def check_constrained(problem: Problem, graph: gtsam.NonlinearFactorGraph, qr: b
     return CheckedSystem(linear, qr_tree, True, (
         f"GTSAM's Cholesky {what}, but the whitened Jacobian has full rank: ill-conditioned, not unconstrained "
         f"(condition number at least {rank.condition:.2g} in the variables' units, {1 / rank.smallest_ratio:.2g} "
-        "with every column scaled to one); solved by QR instead; set solver.factorization: qr to skip the "
+        f"with every column scaled to one); {instead}; set solver.factorization: qr to skip the "
         "attempt, and check the sigmas if one is much tighter than its sensor"))
 
 

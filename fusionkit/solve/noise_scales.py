@@ -45,6 +45,19 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
     """Chi-square and redundancy of the factors of each entry in `labels`, at `values` (an estimate), the
     Bayes tree eliminated as the `solver:` section asks (Cholesky or QR, ordering; default Cholesky, COLAMD).
     An entry with no redundancy has no scale to estimate: DataError."""
+    fits = redundancies(problem, values, labels, solver)
+    for label, fit in fits.items():
+        if fit.redundancy <= REDUNDANCY_FLOOR:
+            raise DataError(f"{label}: noise_scale: estimate: the entry's factors have redundancy "
+                            f"{fit.redundancy:.3g} in {fit.rows} rows (the estimate absorbs them all): its noise cannot "
+                            "be estimated from this data; give noise_scale a number")
+    return fits
+
+
+def redundancies(problem, values: gtsam.Values, labels: set[str] | None = None,
+                 solver: dict | None = None) -> dict[str, EntryFit]:
+    """Chi-square, redundancy and rows of each entry in `labels` at `values`, as `entry_fits` computes them,
+    without judging them; `labels` None: every entry, a part with its own noise as `label [part]`."""
     evaluator = problem.evaluator()
     qr, ordering = (solver["factorization"] == "qr", resolved_ordering(solver["ordering"], evaluator.largest_degree())) \
         if solver else (False, "colamd")
@@ -58,10 +71,16 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
     clique_of, joint = clique_covariances(tree, values)
     of_record = dict(zip(evaluator.linear_order(), range(linear.size())))  # each record's linear factor
     errors = evaluator.record_errors(values)
-    fits = {label: EntryFit() for label in labels}
+    every = labels is None
+    fits: dict[str, EntryFit] = {} if every else {label: EntryFit() for label in labels}
     for i, record in enumerate(problem.records):
-        fit = fits.get(record.label)
-        if fit is None or record.part is not None:  # a part with the plugin's own noise is not scaled
+        if every:
+            fit = fits.setdefault(record.label if record.part is None else f"{record.label} [{record.part}]", EntryFit())
+        elif record.part is not None:  # a part with the plugin's own noise is not scaled
+            continue
+        else:
+            fit = fits.get(record.label)
+        if fit is None:
             continue
         factor = linear.at(of_record[i])
         A = factor.jacobian()[0]  # whitened
@@ -69,11 +88,6 @@ def entry_fits(problem, values: gtsam.Values, labels: set[str], solver: dict | N
         fit.chi2 += 2.0 * errors[i]
         fit.rows += A.shape[0]
         fit.redundancy += A.shape[0] - float(np.einsum("ij,jk,ik->", A, covariance, A))
-    for label, fit in fits.items():
-        if fit.redundancy <= REDUNDANCY_FLOOR:
-            raise DataError(f"{label}: noise_scale: estimate: the entry's factors have redundancy "
-                            f"{fit.redundancy:.3g} in {fit.rows} rows (the estimate absorbs them all): its noise cannot "
-                            "be estimated from this data; give noise_scale a number")
     return fits
 
 
