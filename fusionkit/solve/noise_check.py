@@ -44,7 +44,7 @@ def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: 
     text = (f"chi-square per degree of freedom {per_dof:.3g} is far {'above' if over else 'below'} 1 ({quantile}): "
             f"{scatter}; where it shows, chi-square per redundancy by entry (about 1 expected; an entry's residuals also "
             f"carry the misfit of what it is measured against): "
-            f"{_entries_text(problem, values, settings, over)}; check their sigmas, or set "
+            f"{_entries_text(problem, values, settings, over)}; check those sigmas, or set "
             "solver.a_posteriori_sigmas: true")
     return [SolveWarning("noise_understated" if over else "noise_overstated", text)]
 

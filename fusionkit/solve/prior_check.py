@@ -25,6 +25,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..graph.builder import Problem
+from .rank import index_ranges
 from .result import SolveWarning
 
 ALPHA = 1e-3  # the chance that any of the tested priors is flagged when all agree with the data
@@ -81,11 +82,12 @@ def prior_check(problem: Problem, values: gtsam.Values, covariances: dict[int, n
             "prior is wrong")))
     alone = [t for t in tests if t.prior_only]
     if alone:
-        names = ", ".join(t.name + (f" ({t.prior_only} of its {t.dim} directions)" if t.dim > 1 and t.prior_only < t.dim
-                                    else "") for t in alone)
+        partly = any(t.prior_only < t.dim for t in alone)
         warnings.append(SolveWarning("prior_only", (
-            f"the data reduce the prior variance of {names} by less than {DATA_SHARE:.0%}: the values reported are "
-            "their priors, not a calibration; a recording that moves them, or a measurement of them, would")))
+            f"the data reduce the prior variance of {_members_text(problem, [t.key for t in alone])} by less than "
+            f"{DATA_SHARE:.0%}{' (in some of their directions)' if partly else ''}: the values reported are their "
+            "priors -- as meant for a surveyed or known value; one meant to be calibrated needs a recording that "
+            "moves it, or a measurement of it")))
     return warnings
 
 
@@ -97,3 +99,17 @@ def _conflict_text(problem: Problem, values: gtsam.Values, covariances: dict[int
     mean, prior_sigma = float(np.ravel(t.factor.prior())[0]), float(t.factor.noiseModel().sigmas()[0])
     return (f"{t.name} = {value:.5g} ± {sigma:.2g}, {np.sqrt(t.statistic):.3g} sigma from its prior "
             f"{mean:.5g} ± {prior_sigma:.2g}")
+
+
+def _members_text(problem: Problem, keys: list[int]) -> str:
+    """`anchors/anchor[0..3]`, `robot/axle_length`, `arm/joint_offsets[elbow_joint, wrist_1_joint]`."""
+    parts = []
+    for family, members in problem.keys.group(keys):
+        indices = [problem.keys.decode(k)[1] for k in members]
+        if not family.indexed:
+            parts.append(family.label())
+        elif family.elements:
+            parts.append(f"{family.label()}[{', '.join(family.elements[i] for i in indices)}]")
+        else:
+            parts.append(f"{family.label()}[{index_ranges(indices)}]")
+    return ", ".join(parts)

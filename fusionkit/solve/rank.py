@@ -164,7 +164,7 @@ def null_directions(linear: gtsam.GaussianFactorGraph, values: gtsam.Values, sus
     return directions
 
 
-def _ranges(indices: list[int]) -> str:
+def index_ranges(indices: list[int]) -> str:
     """[0, 1, 2, 5] -> '0..2, 5'."""
     parts, start = [], None
     for a, b in zip(indices, indices[1:] + [None]):
@@ -194,7 +194,7 @@ def _family_text(keys: KeyRegistry, family, members: tuple, axes: np.ndarray, to
     if not family.indexed:
         return family.label() + (f" ({names})" if family.vartype.dim > 1 else "")
     count = f"all {total}" if len(members) == total else f"{len(members)} of {total}"
-    return f"{family.label()}[{_ranges([keys.decode(k)[1] for k in members])}] ({count}; {names})"
+    return f"{family.label()}[{index_ranges([keys.decode(k)[1] for k in members])}] ({count}; {names})"
 
 
 def _groups(keys: KeyRegistry, directions: list[dict[int, np.ndarray]]) -> list[tuple[int, list[tuple]]]:
@@ -218,7 +218,7 @@ def _fix(keys: KeyRegistry, family, members: tuple, axes: np.ndarray, total: int
     if family.kind != STATE:
         return f"a prior sigma for {family.label()} in the robot description, or a measurement of it"
     if len(members) < total:
-        return (f"a measurement of {family.label()}[{_ranges([keys.decode(k)[1] for k in members])}] or a factor "
+        return (f"a measurement of {family.label()}[{index_ranges([keys.decode(k)[1] for k in members])}] or a factor "
                 "tying them to the other states")
     names = ", ".join(a for a, m in zip(component_names(family.vartype)[1], axes) if m)
     return (f"a prior or an absolute measurement of the first state {family.label(0)} ({names}), e.g. a pose.origin "

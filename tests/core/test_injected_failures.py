@@ -180,8 +180,9 @@ def test_vo_scale_held_only_by_its_weak_prior_is_warning_prior_only(ds, out, cap
     rank full)."""
     config = _vo_without_mocap(ds / "config.yaml")
     w = warned(capsys, run(config, out), out, "prior_only")
-    assert w["message"].startswith("the data reduce the prior variance of cam/vo_scale by less than 1%: the values "
-                                   "reported are their priors, not a calibration")
+    assert w["message"] == ("the data reduce the prior variance of cam/vo_scale by less than 1%: the values reported "
+                            "are their priors -- as meant for a surveyed or known value; one meant to be calibrated "
+                            "needs a recording that moves it, or a measurement of it")
     assert report(out)["parameters"]["cam"]["vo_scale"]["sigma"] == pytest.approx(10, rel=1e-3)
 
 

@@ -193,7 +193,8 @@ def check_wheeled_robot(out: Path) -> None:
     """Through a stuck episode the graph's path error is well below plain odometry's; the rule
     final_version is on a par with the graph on this run; the camera calibrates the radii, axle and gyro
     within 3 sigma; the fixed-lag smoother follows the left radius's 1.2 mm wear; the stuck wheel is named
-    (local_misfit at 7-9 s) and the fixed-lag run on the faulty data is rejected, as the tutorial says."""
+    (noise_understated naming its encoder, local_misfit at 7-9 s), the axle length left to its prior without the
+    camera (prior_only), and the fixed-lag run on the faulty data is rejected, as the tutorial says."""
     ate = {name: _report(out, f"wheels_{name}")["evaluation"]["trajectories"]["robot"]["ate_rmse_m"]
            for name in ("graph", "odometry", "final_version", "calibrated")}
     assert ate["graph"] < 0.1 and ate["odometry"] > 2 * ate["graph"]  # measured: 0.060, 0.185
@@ -202,8 +203,12 @@ def check_wheeled_robot(out: Path) -> None:
     for name, ev in _report(out, "wheels_calibrated")["evaluation"]["parameters"]["robot"].items():
         assert abs(ev["z_per_axis"][0][0]) < 3, (name, ev)  # measured: 1.7 at most (left radius)
     graph = _report(out, "wheels_graph")
-    assert [(w["name"], round(w["t_start"], 6), round(w["t_end"], 6)) for w in graph["warnings"]] == [
-        ("local_misfit", 7.0, 9.0)]
+    assert [(w["name"], round(w.get("t_start", 0), 6), round(w.get("t_end", 0), 6)) for w in graph["warnings"]] == [
+        ("noise_understated", 0, 0), ("local_misfit", 7.0, 9.0), ("prior_only", 0, 0)]
+    assert "factors[1]:wheels.encoder 13.7 " in graph["warnings"][0]["message"]  # the stuck wheel's entry first
+    assert "robot/axle_length" in graph["warnings"][2]["message"]  # wheels and gyro leave it to its prior
+    calibrated = [w["name"] for w in _report(out, "wheels_calibrated")["warnings"]]
+    assert calibrated == ["noise_understated", "local_misfit"]  # the camera calibrates the axle
     lag = _report(out, "wheels_lag")  # the tutorial: rejected, the smoother lost track after the stuck wheel
     assert lag["status"] == "rejected" and "incremental_fit" in [w["name"] for w in lag["warnings"]]
     change, sigma = map(float, (out / "wheels_drift_change.txt").read_text().split())
