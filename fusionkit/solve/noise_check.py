@@ -4,6 +4,8 @@ At a least-squares estimate the chi-square (sum of squared whitened residuals) f
 distribution with dof = rows - unknowns when the sigmas are right. Beyond its 1 - P quantile the residuals
 scatter more than the sigmas say (`noise_understated`: the reported sigmas are too small, or the model misses
 an effect); below its P quantile they scatter less (`noise_overstated`: the reported sigmas are too large).
+With many degrees of freedom a few percent is beyond chance; the warning also needs chi2/dof beyond
+VARIANCE_FACTOR or below its inverse (sigmas off by more than 41 %), what changes a reported sigma's meaning.
 Either names the entries responsible by their own variance factor, chi-square / redundancy (noise_scales.py:
 E[chi2_g] = r_g for an entry g with the right sigmas), those beyond chance on their own redundancy first.
 A chi-square beyond solver.max_cost_ratio per dof is the gate's rejection, not a warning; the fixed-lag
@@ -20,6 +22,7 @@ from .health import WINDOW_P as P  # the chi-square's tail probability beyond wh
 from .noise_scales import EntryFit, redundancies
 from .result import SolveWarning
 
+VARIANCE_FACTOR = 2.0  # chi2/dof beyond it or below its inverse (and beyond chance) is judged
 MIN_REDUNDANCY = 0.5  # an entry with less redundancy (a prior the data barely test) is not named
 NAMED = 3  # entries named at most
 
@@ -27,13 +30,16 @@ NAMED = 3  # entries named at most
 def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: int,
                 settings: dict) -> list[SolveWarning]:
     """A `noise_understated` or `noise_overstated` warning when the chi-square at the estimate `values` is
-    beyond its 1 - P or below its P quantile for `dof`; none when the sigmas are scaled a posteriori
+    beyond its 1 - P or below its P quantile for `dof`, and chi2/dof beyond VARIANCE_FACTOR or below its
+    inverse; none when the sigmas are scaled a posteriori
     (`solver.a_posteriori_sigmas`) or the gate rejects the fit."""
     if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag":
         return []
     per_dof = chi2_total / dof
     low, high = chi2.ppf(P, dof), chi2.ppf(1 - P, dof)
     if low <= chi2_total <= high or per_dof > settings["max_cost_ratio"]:
+        return []
+    if 1 / VARIANCE_FACTOR <= per_dof <= VARIANCE_FACTOR:
         return []
     over = bool(chi2_total > high)
     times = np.sqrt(per_dof) if over else 1 / np.sqrt(max(per_dof, 1e-300))
