@@ -133,6 +133,15 @@ def check_uwb(out: Path) -> None:
     assert abs(rr["parameters"]["a"]["uwb_scale"]["value"] - 0.05) < 3 * rr["parameters"]["a"]["uwb_scale"]["sigma"]
     assert any("grow with distance" in n for n in _report(out, "uwb_rr_no_scale")["notes"])
 
+    def warnings(folder):
+        return [w["name"] for w in _report(out, folder)["warnings"]]
+    assert warnings("uwb") == ["prior_only"] and warnings("uwb_tv_result") == ["prior_only"]  # the surveyed anchors
+    assert warnings("uwb_const_result") == ["noise_understated", "prior_only"]
+    assert {"noise_understated", "prior_conflict"} <= set(warnings("uwb_none_result"))
+    assert "anchors/anchor[0]" in next(w["message"] for w in _report(out, "uwb_none_result")["warnings"]
+                                      if w["name"] == "prior_conflict")
+    assert warnings("uwb_lag") == ["incremental_fit"] and _report(out, "uwb_lag")["status"] == "accepted"
+
 
 def check_multirobot(out: Path) -> None:
     """Section 1 solves the config's in-process data; section 2 runs the config.yaml that
@@ -244,6 +253,8 @@ def check_scaled_vo(out: Path) -> None:
         assert report["evaluation"]["trajectories"]["cam"]["ate_rmse_m"] < 0.05
     isam = json.loads((out / "sim_isam2/report.json").read_text())
     assert isam["solver"]["step_latency_ms"]["steps"] >= 600
+    (jumps,) = isam["warnings"]  # the tutorial: where the second mocap pose first fixes the scale
+    assert jumps["name"] == "incremental_jumps" and 2.0 <= jumps["t_start"] < jumps["t_end"] < 2.2
 
 
 def check_imu_vo_bag(out: Path) -> None:
