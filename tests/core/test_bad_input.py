@@ -648,6 +648,7 @@ def test_subprocess_csv_with_infinity_is_one_line_and_creates_nothing(ds, tmp_pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
 
 
+@pytest.mark.slow
 def test_subprocess_unconstrained_is_one_line_and_debug_shows_the_traceback(tmp_path):
     config = _odometry_only(tmp_path)
     proc = _cli("run", str(config), "--out", "result", cwd=tmp_path)

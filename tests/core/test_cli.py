@@ -162,6 +162,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
                           cwd=cwd, env=env, timeout=300, check=False)
 
 
+@pytest.mark.slow
 def test_subprocess_validate_and_run_exit_0_silently_and_write_to_out_config_name(tmp_path):
     proc = _cli("validate", str(SCALED_VO), *FAST, cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr == ""

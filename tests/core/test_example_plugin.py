@@ -177,6 +177,7 @@ def test_demo_estimates_the_bias_within_3_sigma_and_3_cm(installed):
     assert (out / "trajectories" / "drone.tum").is_file()
 
 
+@pytest.mark.slow
 def test_simulated_csv_dataset_runs_and_recovers_the_bias_within_5_cm(installed):
     """`fusionkit simulate altimeter.demo` writes the altimeter as a stream CSV (t,height) with a
     runnable config: the factor works from files as well as in-process data."""
@@ -230,6 +231,7 @@ def test_misspelled_hook_is_named_and_the_plugin_left_out(tmp_path):
     assert "probe" not in json.loads(proc.stdout) and "pose" in json.loads(proc.stdout)
 
 
+@pytest.mark.slow
 def test_plugin_that_fails_to_import_does_not_stop_configs_that_do_not_use_it(tmp_path):
     fake = _fake_distribution(tmp_path, """
         import a_module_that_is_not_installed

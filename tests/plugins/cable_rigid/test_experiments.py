@@ -19,6 +19,7 @@ def table(request):
     return request.param, table_4_1(request.param, SEEDS)
 
 
+@pytest.mark.slow
 def test_fusion_beats_fk_by_10_and_vo_by_60_percent_within_2_cm(table):
     """Source: fused 23-25% better than FK and 72% better than VO. Measured over 30 seeds:
     dynamic FK 1.7 / VO 10.2 / fused 1.2 cm, smooth 0.9 / 4.1 / 0.7 cm."""
@@ -29,6 +30,7 @@ def test_fusion_beats_fk_by_10_and_vo_by_60_percent_within_2_cm(table):
     assert r["errors_m"]["fused"] < 0.02
 
 
+@pytest.mark.slow
 def test_cable_residual_drops_over_10x_beyond_the_source_to_under_1_2_mm(table):
     """Source: 0.043 -> 0.0049 m (8.8x). Measured: 55 -> 0.6 mm dynamic, 22 -> 0.8 mm smooth."""
     _, r = table
@@ -37,6 +39,7 @@ def test_cable_residual_drops_over_10x_beyond_the_source_to_under_1_2_mm(table):
     assert before / after > 10
 
 
+@pytest.mark.slow
 def test_position_sigmas_pooled_over_seeds_are_within_15_points_of_68_percent(table):
     """Pooled over 3 seeds (the errors of one run are correlated in time, so one run alone says
     little; 30 seeds in the benchmark are within 5 points of 68/95/99.7 on every axis)."""

@@ -6,6 +6,7 @@ guess; the offset and rate are recovered within 3 sigma."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
@@ -59,6 +60,7 @@ def test_drifting_encoder_clock_writes_the_rate_parameter_truth_and_config():
     assert ENCODER_RATE not in SIM.robots(constant)["cdpr"]["parameters"]
 
 
+@pytest.mark.slow
 def test_encoder_offset_and_clock_rate_recovered_within_3_sigma():
     """Self-consistency check (the config's noise = the simulator's): encoders 30 ms late whose clock gains
     0.2 ms/s, 6 s at 60 Hz (states dense enough that the curve through them follows the motion; at 30 Hz the

@@ -25,6 +25,7 @@ def large35():
     return [calibrate("cdpr_large", 35, seed) for seed in range(3)]
 
 
+@pytest.mark.slow
 def test_large_robot_35_poses_matches_table_5_2(large35):
     """Source: 0.191 m pulleys, 0.173 m offsets from starts up to 10 m off. Measured at 1 cm / 5 mrad
     vision over 10 seeds: 0.185 / 0.175 m; every run inside its own sigmas."""
@@ -35,6 +36,7 @@ def test_large_robot_35_poses_matches_table_5_2(large35):
         assert np.abs(ev["pulley"]["z_per_axis"]).max() < 4 and np.abs(ev["offset"]["z_per_axis"]).max() < 4
 
 
+@pytest.mark.slow
 def test_small_robot_8_poses_at_1_cm_vision_is_within_its_marginals():
     """The small robot under the large one's noise policy (1 cm / 5 mrad vision), from starts up to
     1 m off (0.55 m on average): 8 poses tell its pulleys little. Measured on these 3 seeds 0.426 /
@@ -45,6 +47,7 @@ def test_small_robot_8_poses_at_1_cm_vision_is_within_its_marginals():
     assert runs["pulley_m"] < runs["predicted_pulley_m"]
 
 
+@pytest.mark.slow
 def test_refined_solve_helps_where_the_data_match_the_model():
     """The simulator's data satisfy the catenary exactly: the second solve with the attachment
     heights held to 0.1 mm (solver.refine) takes the small robot at the source code's vision noise

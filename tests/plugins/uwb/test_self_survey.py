@@ -121,6 +121,7 @@ def _fusionkit(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("duration, expected", [("0.5", "5 epochs have a range to every anchor; at least 12"),
                                                 ("2", "does not span the plane")])
+@pytest.mark.slow
 def test_too_short_a_recording_with_no_surveyed_anchor_is_one_located_line(tmp_path, duration, expected):
     sim = tmp_path / "sim"
     assert _fusionkit("simulate", "uwb.sim", "--out", str(sim), "--set", "unknown_anchors=[0,1,2,3]",
@@ -133,6 +134,7 @@ def test_too_short_a_recording_with_no_surveyed_anchor_is_one_located_line(tmp_p
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_every_anchor_unknown_in_3d_is_refused_before_solving(tmp_path):
     sim = tmp_path / "sim"
     assert _fusionkit("simulate", "uwb.drone", "--out", str(sim), "--set", "duration=5").returncode == 0

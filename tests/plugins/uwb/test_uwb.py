@@ -49,6 +49,7 @@ def test_bias_model_ranking_holds_by_0_8x_with_noise_misstated_x0_5_or_x2(noise)
     assert m["constant"]["position_m"] < 0.8 * m["none"]["position_m"]
 
 
+@pytest.mark.slow
 def test_cauchy_kernel_keeps_the_error_within_1_5x_clean_under_10_percent_nlos():
     """NLOS bursts on 10 % of the ranges: least squares 0.34 m, Cauchy 0.087 m (clean: 0.078 m)."""
     clean = position_rmse(run({"bias_model": "time_varying"}, 0))
@@ -67,6 +68,7 @@ def test_unknown_anchor_error_shrinks_with_epochs_to_under_10_cm_after_40_s():
     assert errors[0] > errors[1] > errors[2] and errors[2] < 0.1
 
 
+@pytest.mark.slow
 def test_tag_to_tag_ranges_improve_robot_a_and_robot_b_tracks_within_10_cm():
     """Measured: robot a 0.054 m with tag-to-tag ranges, 0.078 m without."""
     both = run({"robots": 2}, 0)
@@ -114,6 +116,7 @@ def test_2_percent_range_scale_is_estimated_within_3_sigma_and_halves_the_error(
     assert position_rmse(r) < 0.5 * position_rmse(without)
 
 
+@pytest.mark.slow
 def test_constant_velocity_prior_without_odometry_beats_multilateration_by_0_6x():
     """Without wheel odometry a constant-velocity prior carries the motion between epochs (0.11 m
     measured, against 0.24 m per-epoch multilateration)."""
