@@ -32,7 +32,7 @@ from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, no
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.8"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.9"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -45,6 +45,7 @@ API_VERSION = "1.8"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.7: `noise_scale:` on every factor entry (ctx.noise applies it); ctx.add(..., part=) for a factor whose
 #      noise is the plugin's own (neither the entry's kernel nor its scale applies)
 # 1.8: se2 (SE(2) for N planar poses at once, as lie for SE(3))
+# 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -161,6 +161,12 @@ class FactorType(Component):
         (`evaluation.baselines.<robot>.<name>`). Names are identifiers (no dots). Default: none."""
         return {}
 
+    def separation_hint(self, spec: Spec, parameters: list[str]) -> str | None:
+        """Optional (API 1.9): the data hardly tell apart `parameters` (full names, `robot/name`, sorted; the
+        identifiability report's group). If this entry's model knows what motion or measurement separates
+        them, one sentence saying so (it is printed after the group); else None. Default: None."""
+        return None
+
     @classmethod
     @abstractmethod
     def example(cls, rng: "np.random.Generator"):

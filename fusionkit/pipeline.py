@@ -33,6 +33,7 @@ from .progress import Progress
 from .threads import one_blas_thread
 from .robots.calibration_file import calibration_entries
 from .solve import noise_scales, solve
+from .solve.identifiability import Identifiability, identifiability
 from .solve.result import SolveResult
 
 
@@ -75,6 +76,7 @@ class RunResult:
     timings: dict[str, float]
     streams: dict[str, Stream] = field(default_factory=dict)  # the data the graph was built from
     states: dict[tuple[str, str], StateSeries] = field(default_factory=dict)  # (robot, family) -> series
+    identifiability: Identifiability | None = None  # what the data determine of the parameters
 
     @property
     def notes(self) -> list[str]:
@@ -359,6 +361,7 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
             for name, stream in factor_type.baseline(problem.context, spec, solution.values).items():
                 baselines.setdefault(spec["robot"], {})[name] = stream
     timings["solve_s"] = solution.seconds
+    report = _identifiability(config, problem, solution)
     _stage(progress, "evaluating")
     trajectories, position_sigma = _trajectories(problem, solution.values, solution.covariances)
     parameters = _parameters(problem, solution.values, solution.covariances)
@@ -369,7 +372,25 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     if baselines:
         evaluation["baselines"] = baseline_errors(baselines, trajectories, truth)
     return RunResult(config, problem, solution, trajectories, position_sigma, parameters, truth, evaluation,
-                     timings, streams, states)
+                     timings, streams, states, report)
+
+
+def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifiability | None:
+    """The identifiability report of a solve with covariances (solve/identifiability.py); the fixed-lag
+    smoother's estimate is not the whole graph's, so it has none."""
+    if not config.solver["marginals"] or config.solver["type"] == "fixed_lag":
+        return None
+    reg = registry()
+    factor_types = [(reg.get("factor_types", spec.type)(), spec) for spec in config.factors]
+
+    def hints(parameters: list[str]) -> list[str]:
+        found = (factor_type.separation_hint(spec, parameters) for factor_type, spec in factor_types)
+        return list(dict.fromkeys(h for h in found if h))
+
+    def unit(robot: str, name: str) -> str:
+        param = config.robots[robot].description.parameters.get(name) if robot in config.robots else None
+        return param.unit if param is not None and param.unit else ""
+    return identifiability(problem, solution.values, solution.factorization == "qr", hints, unit)
 
 
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:

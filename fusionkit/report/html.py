@@ -99,6 +99,28 @@ def _plots(folder: Path | None) -> str:
     return "".join(images) or "<p class=small>No plots.</p>"
 
 
+_RED, _BLUE = "200,40,40", "40,80,200"  # the heat map's colours of a positive and a negative correlation
+
+
+def _identifiability(result: RunResult) -> str:
+    """What the data determine: the report's sentences and the parameters' correlation as a heat map (a table
+    whose cells are shaded by |rho|, red for positive, blue for negative)."""
+    report = result.identifiability
+    if report is None:
+        return "<p>Not computed (no parameters, solver.marginals false, or the fixed-lag smoother).</p>"
+    lines = report.lines()
+    text = f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in lines)}</ul>" if lines else (
+        "<p>Every parameter is determined by the data on its own (no |rho| above 0.9, no prior that decides).</p>")
+    short = [escape(name.split("/", 1)[1]) for name in report.names]
+    head = "<tr><th>rho</th>" + "".join(f"<th class=small>{n}</th>" for n in short) + "</tr>"
+    rows = []
+    for name, row in zip(short, report.correlation):
+        cells = "".join(f"<td class=small title='{rho:+.3f}' style='background: rgba({_RED if rho > 0 else _BLUE},"
+                        f"{abs(rho):.2f})'>{rho:+.2f}</td>" for rho in row)
+        rows.append(f"<tr><th class=small>{name}</th>{cells}</tr>")
+    return text + f"<h3>Posterior correlation of the parameters</h3><table>{head}{''.join(rows)}</table>"
+
+
 def report_html(result: RunResult, plots: Path | None) -> str:
     """The page; `plots`: the folder of this run's PNGs to embed (None without plots)."""
     verdicts = [f"<li><b>{escape(label)}</b>: {escape(sentence)}</li>"
@@ -112,6 +134,7 @@ def report_html(result: RunResult, plots: Path | None) -> str:
         "the same figures as report.json</p>",
         "<h2>Solver</h2>", _solver(result),
         "<h2>Parameters</h2>", _parameters(result),
+        "<h2>Identifiability</h2>", _identifiability(result),
         "<h2>Trajectories</h2>", _trajectories(result),
         "<h2>Plots</h2>", _plots(plots),
         "<h2>Diagnostics</h2>", f"<ul>{''.join(verdicts)}</ul>" if verdicts else "<p>None.</p>",

@@ -119,6 +119,7 @@ def report_document(result: RunResult) -> dict:
         "final_cost": solver["final_cost"],
         "timings_s": result.timings,
         "parameters": params,
+        "identifiability": result.identifiability.to_json() if result.identifiability else None,
         "evaluation": result.evaluation,
         "diagnostics": problem.diagnostics,
         "notes": result.notes,

@@ -173,6 +173,10 @@ def summary_text(result: RunResult) -> str:
         lines.append(f"  {row.label} = {row.text}" + (f"   (error vs truth {err['abs_error'][row.index]:.3g})" if err else ""))
     if series > MAX_SERIES:
         lines.append(f"  ... and {series - MAX_SERIES} more time-varying parameters (report.json has every series)")
+    found = result.identifiability.lines() if result.identifiability else []
+    if found:
+        lines.append("  identifiability (what the data determine; report.json identifiability):")
+        lines += [f"    {line}" for line in found]
     for robot, ev in result.evaluation.get("trajectories", {}).items():
         matched = f"{ev['matched_poses']} of {ev['states']} states matched to truth"
         if "ate_rmse_m" not in ev:

@@ -174,6 +174,11 @@ def turn_direction(angle: float, sigma: float) -> int:
     return int(np.sign(angle)) if abs(angle) > 3.0 * sigma else 0
 
 
+def _own(spec: Spec, parameters: list[str], *names: str) -> bool:
+    """Whether the group `parameters` (full names) holds each of this entry's robot's `names`."""
+    return all(f"{spec['robot']}/{name}" in parameters for name in names)
+
+
 class Encoder(FactorType):
     name = "wheels.encoder"
     summary = ("wheel encoders, one factor per wheel and state interval: angle increment = the wheel's forward "
@@ -189,6 +194,14 @@ class Encoder(FactorType):
                                            "properties": {"sigma": SIGMA, "k": SIGMA, "seed_rate": SIGMA},
                                            "required": ["sigma", "k"], "additionalProperties": False}},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def separation_hint(self, spec: Spec, parameters: list[str]) -> str | None:
+        """Radii scaled together with the path change no wheel reading: only a length measured otherwise fixes
+        their common scale."""
+        if _own(spec, parameters, RADIUS_LEFT, RADIUS_RIGHT):
+            return ("to fix the wheels' common scale: drive a measured distance, or add an absolute position "
+                    "reference (pose.absolute); wheels and gyro cannot tell larger wheels from a longer path")
+        return None
 
     def check(self, spec: Spec, scope) -> None:
         """`wheels` (default: every wheel the robot has) are wheels of the robot and columns of the stream."""
@@ -275,6 +288,15 @@ class Gyro(FactorType):
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "parameter_every": EVERY},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def separation_hint(self, spec: Spec, parameters: list[str]) -> str | None:
+        """A longer axle turns the robot less per wheel reading, a larger gyro scale more per gyro reading: wheels
+        and gyro see only their ratio, and whatever else changes the heading (a slip in fast turns) moves it."""
+        if _own(spec, parameters, AXLE, GYRO_SCALE):
+            return ("to separate axle length and gyro scale: turn both ways at several turn rates, slow turns too "
+                    "(a slip in fast turns is then seen against the gyro instead of absorbed by its scale), or add "
+                    "an absolute heading or pose reference (pose.absolute)")
+        return None
 
     def check(self, spec: Spec, scope) -> None:
         if not drive_of(check_drive_entry(spec, scope)).has_gyro:
