@@ -218,6 +218,11 @@ def check_wheeled_robot(out: Path) -> None:
     assert "robot/axle_length" in graph["warnings"][2]["message"]  # wheels and gyro leave it to its prior
     calibrated = [w["name"] for w in _report(out, "wheels_calibrated")["warnings"]]
     assert calibrated == ["noise_understated", "local_misfit"]  # the camera calibrates the axle
+    ident = graph["identifiability"]  # the tutorial: the gyro scale rests on the axle prior, and what separates them
+    assert "robot/axle_length" in [d["parameter"] for d in ident["prior_decides"]]
+    assert {"parameter": "robot/gyro_scale", "prior_of": "robot/axle_length"}.items() <= next(
+        r for r in ident["rests_on_prior"] if r["parameter"] == "robot/gyro_scale").items()
+    assert any("turn both ways" in h for d in ident["hardly_told_apart"] for h in d["hints"])
     lag = _report(out, "wheels_lag")  # the tutorial: rejected, the smoother lost track after the stuck wheel
     assert lag["status"] == "rejected" and "incremental_fit" in [w["name"] for w in lag["warnings"]]
     change, sigma = map(float, (out / "wheels_drift_change.txt").read_text().split())
