@@ -31,6 +31,7 @@ from ..graph.variables import component_names
 CORRELATED = 0.9  # |rho| beyond which two components are reported as confused
 PRIOR_DECIDES = 0.7  # posterior sigma over prior sigma beyond which the prior, not the data, decides
 RESTS_ON = 0.5  # a prior moving a component by more than this share of its sigma, per prior sigma
+SHOWN = 8  # lines of each kind the console prints (report.json has all)
 MAX_DIM = 400  # parameter components analysed at most (the joint covariance is dense)
 STATIC = float("-inf")
 
@@ -73,18 +74,34 @@ class Identifiability:
                                        "hints": d.hints} for d in self.directions]}
 
     def lines(self) -> list[str]:
-        """The console's short section (empty when the data determine every component on its own)."""
-        out = [f"correlated: {self.names[i]} ~ {self.names[j]} (rho {r:+.2f})" for i, j, r in self.pairs]
-        out += [f"the prior decides, not the data: {self.names[i]} (sigma {self.sigma[i] / self.prior_sigma[i]:.2f} "
-                "x its prior's)" for i in self.prior_decides]
+        """The console's short section (empty when the data determine every component on its own): one line
+        for the prior-decided components, one per component resting on a prior, one per group hardly told
+        apart (its correlations, its weakest combination, what would separate it); at most SHOWN of each."""
+        out = []
+        if self.prior_decides:
+            listed = ", ".join(f"{self.names[i]} {self.sigma[i] / self.prior_sigma[i]:.2f}"
+                               for i in self.prior_decides[:SHOWN])
+            out.append(f"the prior decides, not the data (sigma over the prior's): {listed}"
+                       + _more(len(self.prior_decides)))
         out += [f"rests on the prior of {self.names[j]}: {self.names[i]} (moved {m:+.2f} of its sigma per sigma of "
-                "that prior)" for i, j, m in self.rests_on]
-        for d in self.directions:
-            along = " with ".join(f"{s:+.3g}{(' ' + self.units[i]) if self.units[i] else ''} {self.names[i]}"
-                                  for i, s in zip(d.members, d.step))
-            out.append(f"hardly told apart: {along} (one sigma along the weakest combination)"
+                "that prior)" for i, j, m in self.rests_on[:SHOWN]]
+        if len(self.rests_on) > SHOWN:
+            out.append(f"... and {len(self.rests_on) - SHOWN} more resting on priors (report.json)")
+        for d in self.directions[:SHOWN]:
+            inside = [r for i, j, r in self.pairs if i in d.members and j in d.members]
+            rho = f"; rho {min(inside):+.2f} .. {max(inside):+.2f}" if len(inside) > 1 else (
+                f"; rho {inside[0]:+.2f}" if inside else "")
+            along = ", ".join(f"{s:+.3g}{(' ' + self.units[i]) if self.units[i] else ''} {self.names[i]}"
+                              for i, s in zip(d.members, d.step))
+            out.append(f"hardly told apart{rho}: one sigma along their weakest combination is {along}"
                        + "".join(f"; {h}" for h in d.hints))
+        if len(self.directions) > SHOWN:
+            out.append(f"... and {len(self.directions) - SHOWN} more groups hardly told apart (report.json)")
         return out
+
+
+def _more(count: int) -> str:
+    return f", and {count - SHOWN} more (report.json)" if count > SHOWN else ""
 
 
 def parameter_keys(problem: Problem) -> list[int]:

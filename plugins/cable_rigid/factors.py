@@ -3,6 +3,8 @@ eq. 4.1), elastic cable with measured tension (thesis eq. 4.2), and the pseudo-m
 
 from __future__ import annotations
 
+import re
+
 from functools import partial
 
 import gtsam
@@ -40,6 +42,19 @@ def attachment_offset(b: np.ndarray) -> gtsam.Pose3:
     return gtsam.Pose3(gtsam.Rot3(), np.asarray(b, float))
 
 
+def pulley_offset_hint(self, spec: Spec, parameters: list[str]) -> str | None:
+    """FactorType.separation_hint of the cable factors: a pulley moved along its cable and the cable's offset
+    changed by as much give the same readings at every pose whose cable points the same way; only cable
+    directions that vary tell them apart."""
+    def indices(name: str) -> set[int]:
+        pattern = re.compile(rf"{re.escape(spec['robot'])}/{name}\[(\d+)\]")
+        return {int(m.group(1)) for m in map(pattern.fullmatch, parameters) if m}
+    if indices("pulley") & indices("offset"):
+        return ("to separate a pulley from its cable's offset: poses over a larger volume, moving across the "
+                "cable directions (the cable's direction at the pulley must vary)")
+    return None
+
+
 class CableLength(FactorType):
     name = "cable.length"
     summary = ("rigid cable: encoder z_i = ||R b_i + t - a_i|| + l0_i (thesis eq. 4.1): native GTSAM range+bias "
@@ -52,6 +67,8 @@ class CableLength(FactorType):
                              "columns": {"type": "array", "items": {"type": "string"}},
                              "cables": INDEX_LIST, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    separation_hint = pulley_offset_hint  # what separates a pulley from its cable's offset
 
     def check(self, spec: Spec, scope) -> None:
         n = check_cdpr(spec, scope)
@@ -156,6 +173,8 @@ class ElasticCableLength(FactorType):
                              "cables": INDEX_LIST, "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "tension_stream", "sigma", "tension_sigma"],
               "additionalProperties": False}
+
+    separation_hint = pulley_offset_hint
 
     def check(self, spec: Spec, scope) -> None:
         n = check_cdpr(spec, scope)

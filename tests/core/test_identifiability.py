@@ -4,6 +4,8 @@ into the gyro scale at chi2/dof 1, found without truth because the gyro scale re
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 
+REPO = Path(__file__).resolve().parents[2]
 SQUARE = {"path": "square", "duration": 40.0}
 
 
@@ -79,3 +82,19 @@ def test_a_camera_separates_them_and_the_report_says_nothing_of_the_pair():
 def test_one_well_determined_parameter_gives_an_empty_report(ds):
     report = estimate(load_config(ds / "config.yaml", ["output.plots=false"])).identifiability
     assert report.names == ["cam/vo_scale"] and report.lines() == []
+
+
+def test_cable_pulleys_and_offsets_are_grouped_with_the_cable_plugins_hint():
+    """configs/cable_mocap_lengths.yaml: each pulley trades off against its cable's offset along the cable
+    (|rho| up to 0.99); the cable factor says what separates them."""
+    report = estimate(load_config(REPO / "configs" / "cable_mocap_lengths.yaml", ["output.plots=false"])).identifiability
+    assert len(report.directions) == 4
+    for i, d in enumerate(report.directions):
+        assert {report.names[m].split(".")[0] for m in d.members} == {f"cdpr/pulley[{i}]", f"cdpr/offset[{i}]"}
+        assert any("poses over a larger volume" in h for h in d.hints)
+
+
+def test_the_cable_quickstart_reports_nothing():
+    """No false alarm where the data determine every parameter (issue 32)."""
+    report = estimate(load_config(REPO / "configs" / "quickstart.yaml", ["output.plots=false"])).identifiability
+    assert len(report.names) == 17 and report.lines() == []
