@@ -197,8 +197,8 @@ class Encoder(FactorType):
 
     def separation_hint(self, spec: Spec, parameters: list[str]) -> str | None:
         """Radii scaled together with the path change no wheel reading: only a length measured otherwise fixes
-        their common scale."""
-        if _own(spec, parameters, RADIUS_LEFT, RADIUS_RIGHT):
+        their common scale (a group with the axle length is the turn geometry instead: no hint)."""
+        if _own(spec, parameters, RADIUS_LEFT, RADIUS_RIGHT) and not _own(spec, parameters, AXLE):
             return ("to fix the wheels' common scale: drive a measured distance, or add an absolute position "
                     "reference (pose.absolute); wheels and gyro cannot tell larger wheels from a longer path")
         return None
@@ -296,6 +296,9 @@ class Gyro(FactorType):
             return ("to separate axle length and gyro scale: turn both ways at several turn rates, slow turns too "
                     "(a slip in fast turns is then seen against the gyro instead of absorbed by its scale), or add "
                     "an absolute heading or pose reference (pose.absolute)")
+        if _own(spec, parameters, GYRO_SCALE, GYRO_BIAS):
+            return ("to separate gyro scale and bias: turn both ways (the scale changes sign with the turn, the bias "
+                    "does not) and stand still for a while (the bias alone)")
         return None
 
     def check(self, spec: Spec, scope) -> None:
