@@ -390,7 +390,7 @@ def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifia
     def unit(robot: str, name: str) -> str:
         param = config.robots[robot].description.parameters.get(name) if robot in config.robots else None
         return param.unit if param is not None and param.unit else ""
-    return identifiability(problem, solution.values, solution.factorization == "qr", hints, unit)
+    return identifiability(problem, solution.values, solution.factorization == "qr", hints, unit, solution.linear)
 
 
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:

@@ -57,8 +57,11 @@ def solve(problem: Problem, settings: dict, marginal_keys: set[int],
     if settings["marginals"] and kind != "fixed_lag":
         if progress:
             progress.stage(f"marginal covariances of {len(marginal_keys)} variables")
+        if kind == "batch":
+            result.linear = problem.evaluator().linearize(result.values)
         if kind == "batch" and result.factorization == "qr":
-            result.covariances = recovered_marginals(problem.evaluator(), result.values, marginal_keys, settings["ordering"])
+            result.covariances = recovered_marginals(problem.evaluator(), result.values, marginal_keys, settings["ordering"],
+                                                     result.linear)
         else:
             result.covariances = marginal_covariances(problem, result, marginal_keys, settings["ordering"])
         result.warnings += prior_check(problem, result.values, result.covariances)
@@ -77,7 +80,7 @@ def marginal_covariances(problem: Problem, result: SolveResult, keys: set[int],
         return {}
     try:
         if result.marginal is None:
-            return tree_marginals(problem.evaluator(), result.values, keys)
+            return tree_marginals(problem.evaluator(), result.values, keys, result.linear)
         return {k: np.asarray(result.marginal(k)) for k in keys}
     except RuntimeError as exc:
         if not indeterminate(exc):
@@ -86,4 +89,4 @@ def marginal_covariances(problem: Problem, result: SolveResult, keys: set[int],
                                 instead="the covariances at the estimate come from QR instead")
     if checked.warning:
         result.warnings.append(SolveWarning("ill_conditioned", f"at the estimate: {checked.warning}"))
-    return recovered_marginals(problem.evaluator(), result.values, keys, ordering)
+    return recovered_marginals(problem.evaluator(), result.values, keys, ordering, result.linear)

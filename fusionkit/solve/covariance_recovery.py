@@ -34,15 +34,19 @@ def frontal_count(keys: list[int], rows: int, dims: dict[int, int]) -> int:
 
 
 def tree_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                   keys: set[int]) -> dict[int, np.ndarray]:
-    """Marginal covariance (tangent space at `values`) of each key, from the Cholesky Bayes tree."""
-    return marginals_from_tree(graph.linearize(values).eliminateMultifrontal(), values, keys)
+                   keys: set[int], linear: gtsam.GaussianFactorGraph | None = None) -> dict[int, np.ndarray]:
+    """Marginal covariance (tangent space at `values`) of each key, from the Cholesky Bayes tree (of `linear`, the
+    graph linearized at `values`, when given)."""
+    linear = graph.linearize(values) if linear is None else linear
+    return marginals_from_tree(linear.eliminateMultifrontal(), values, keys)
 
 
 def recovered_marginals(graph: GraphEvaluator | gtsam.NonlinearFactorGraph, values: gtsam.Values, keys: set[int],
-                        ordering: str = "colamd") -> dict[int, np.ndarray]:
+                        ordering: str = "colamd", linear: gtsam.GaussianFactorGraph | None = None
+                        ) -> dict[int, np.ndarray]:
     """Marginal covariance (tangent space at `values`) of each key, from the QR Bayes tree."""
-    return marginals_from_tree(eliminate(graph.linearize(values), True, ordering), values, keys)
+    linear = graph.linearize(values) if linear is None else linear
+    return marginals_from_tree(eliminate(linear, True, ordering), values, keys)
 
 
 def marginals_from_tree(tree: gtsam.GaussianBayesTree, values: gtsam.Values, keys: set[int]) -> dict[int, np.ndarray]:

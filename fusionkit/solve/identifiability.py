@@ -109,10 +109,12 @@ def parameter_keys(problem: Problem) -> list[int]:
     return sorted(k for k, t in problem.key_time.items() if t == STATIC and k not in problem.fixed_keys)
 
 
-def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False) -> np.ndarray:
-    """The joint posterior covariance of `keys` (their tangent spaces, in `keys`' order) at `values`: every other
-    variable eliminated, the information left on `keys` inverted."""
-    linear = problem.evaluator().linearize(values)
+def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
+                     linear: gtsam.GaussianFactorGraph | None = None) -> np.ndarray:
+    """The joint posterior covariance of `keys` (their tangent spaces, in `keys`' order) at `values` (`linear`:
+    the graph linearized there, if at hand): every other variable eliminated, the information left on `keys`
+    inverted."""
+    linear = problem.evaluator().linearize(values) if linear is None else linear
     full = gtsam.Ordering.ColamdConstrainedLastGaussianFactorGraph(linear, gtsam.KeyVector(keys))
     wanted = set(keys)
     others = gtsam.Ordering()
@@ -134,16 +136,16 @@ def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr
 
 
 def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hints=None,
-                    unit=None) -> Identifiability | None:
+                    unit=None, linear: gtsam.GaussianFactorGraph | None = None) -> Identifiability | None:
     """The report for `problem`'s parameters at the estimate `values`; None without parameters, or with more
     than MAX_DIM components. `hints(names)`: what would separate a group of parameters (their full names,
     `robot/name`), a list of sentences; `unit(robot, name)`: a scalar or vector parameter's unit ("" if none;
-    pose axes are rad and m)."""
+    pose axes are rad and m); `linear`: the graph linearized at `values`, if at hand."""
     keys = parameter_keys(problem)
     dims = [problem.keys.decode(k)[0].vartype.dim for k in keys]
     if not keys or sum(dims) > MAX_DIM:
         return None
-    covariance = joint_covariance(problem, values, keys, qr)
+    covariance = joint_covariance(problem, values, keys, qr, linear)
     names, units, owner, kept = [], [], [], []
     for k, dim in zip(keys, dims):
         family, _ = problem.keys.decode(k)

@@ -52,6 +52,7 @@ class SolveResult:
     revisions: list = field(default_factory=list)  # incremental: health.Revision per time step
     # fixed-lag: (time, the smoother's whole estimate then) once per lag, when a health-check window is complete
     static_snapshots: list[tuple[float, gtsam.Values]] = field(default_factory=list)
+    linear: gtsam.GaussianFactorGraph | None = None  # the graph linearized at `values` (the covariances' system)
 
     @property
     def sigma0(self) -> float | None:
