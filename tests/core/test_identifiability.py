@@ -31,6 +31,7 @@ def _index(report, name):
     return report.names.index(name)
 
 
+@pytest.mark.slow
 def test_joint_covariance_diagonal_and_blocks_match_the_marginals(square_runs):
     """The Schur complement on the parameters inverted = the top-down marginals, to rounding."""
     run = square_runs["sliding"]
@@ -42,6 +43,7 @@ def test_joint_covariance_diagonal_and_blocks_match_the_marginals(square_runs):
     assert np.allclose(report.correlation, report.correlation.T) and np.allclose(np.diag(report.correlation), 1)
 
 
+@pytest.mark.slow
 def test_the_sliding_square_says_the_gyro_scale_rests_on_the_axle_prior_and_how_to_separate_them(square_runs):
     """The slip moved the gyro scale (truth 1.25) by many sigma at chi2/dof about 1; the report, without truth:
     the axle length is its prior's, the gyro scale moves with that prior, and the wheels say what separates them."""
@@ -60,6 +62,7 @@ def test_the_sliding_square_says_the_gyro_scale_rests_on_the_axle_prior_and_how_
     assert "rests on the prior of robot/axle_length: robot/gyro_scale" in printed
 
 
+@pytest.mark.slow
 def test_the_clean_square_reports_the_same_relation(square_runs):
     """Not a false alarm: the recording cannot tell them apart whether or not it slid."""
     report = square_runs["clean"].identifiability
@@ -67,6 +70,7 @@ def test_the_clean_square_reports_the_same_relation(square_runs):
     assert axle in report.prior_decides and any((i, j) == (gyro, axle) for i, j, _ in report.rests_on)
 
 
+@pytest.mark.slow
 def test_a_camera_separates_them_and_the_report_says_nothing_of_the_pair():
     """With pose.absolute on the camera the axle and gyro scale are calibrated: no prior decides either."""
     def edit(config):
@@ -84,6 +88,7 @@ def test_one_well_determined_parameter_gives_an_empty_report(ds):
     assert report.names == ["cam/vo_scale"] and report.lines() == []
 
 
+@pytest.mark.slow
 def test_cable_pulleys_and_offsets_are_grouped_with_the_cable_plugins_hint():
     """configs/cable_mocap_lengths.yaml: each pulley trades off against its cable's offset along the cable
     (|rho| up to 0.99); the cable factor says what separates them."""
@@ -94,6 +99,7 @@ def test_cable_pulleys_and_offsets_are_grouped_with_the_cable_plugins_hint():
         assert any("poses over a larger volume" in h for h in d.hints)
 
 
+@pytest.mark.slow
 def test_the_cable_quickstart_reports_nothing():
     """No false alarm where the data determine every parameter (issue 32)."""
     report = estimate(load_config(REPO / "configs" / "quickstart.yaml", ["output.plots=false"])).identifiability

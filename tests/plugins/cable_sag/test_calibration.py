@@ -79,6 +79,7 @@ def test_nine_poses_at_1_cm_vision_are_within_their_marginals_which_exceed_table
     assert r["pulley_m"] < 1.2 * r["predicted_pulley_m"]
 
 
+@pytest.mark.slow
 def test_rigid_graph_is_ten_times_worse(large35):
     """The ablation: the same data through cable.length (massless cables). Source: 2.34 m vs 0.19 m."""
     rigid = calibrate("cdpr_large", 35, 0, rigid=True)
