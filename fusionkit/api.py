@@ -29,6 +29,7 @@ from .robots.registered import robot_description_data, robot_description_files
 from .report.writer import check_output_folder, write_output_folder
 from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, noisy, odometry, sample_times,
                                 smooth_trajectory)
+from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
@@ -45,7 +46,7 @@ API_VERSION = "1.9"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.7: `noise_scale:` on every factor entry (ctx.noise applies it); ctx.add(..., part=) for a factor whose
 #      noise is the plugin's own (neither the entry's kernel nor its scale applies)
 # 1.8: se2 (SE(2) for N planar poses at once, as lie for SE(3))
-# 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report
+# 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report, parameter_indices
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -74,4 +75,6 @@ __all__ = [
     "VectorizedResidual", "vectorized_factor", "lie", "se2",
     # what a robot model draws of itself (RobotModel.geometry)
     "Points", "Lines",
+    # FactorType.separation_hint: which elements of a parameter a group names
+    "parameter_indices",
 ]

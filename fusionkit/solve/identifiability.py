@@ -20,6 +20,7 @@ parameters). From S, per scalar component (a pose parameter's tangent axes named
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import gtsam
@@ -102,6 +103,13 @@ class Identifiability:
 
 def _more(count: int) -> str:
     return f", and {count - SHOWN} more (report.json)" if count > SHOWN else ""
+
+
+def parameter_indices(parameters: list[str], robot: str, name: str) -> set[int]:
+    """The element indices i of `robot/name[i]` among `parameters` (full names, as `FactorType.separation_hint`
+    is given them): e.g. the cables whose pulley is in a group."""
+    pattern = re.compile(rf"{re.escape(robot)}/{re.escape(name)}\[(\d+)\]")
+    return {int(m.group(1)) for m in map(pattern.fullmatch, parameters) if m}
 
 
 def parameter_keys(problem: Problem) -> list[int]:

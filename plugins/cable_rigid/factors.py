@@ -3,15 +3,13 @@ eq. 4.1), elastic cable with measured tension (thesis eq. 4.2), and the pseudo-m
 
 from __future__ import annotations
 
-import re
-
 from functools import partial
 
 import gtsam
 import numpy as np
 
-from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor, Spec, Stream,
-                           vectorized_factor)
+from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, parameter_indices, range_factor,
+                           Spec, Stream, vectorized_factor)
 
 from .kinematics import forward_kinematics
 from .model import cable_robot
@@ -46,10 +44,7 @@ def pulley_offset_hint(self, spec: Spec, parameters: list[str]) -> str | None:
     """FactorType.separation_hint of the cable factors: a pulley moved along its cable and the cable's offset
     changed by as much give the same readings at every pose whose cable points the same way; only cable
     directions that vary tell them apart."""
-    def indices(name: str) -> set[int]:
-        pattern = re.compile(rf"{re.escape(spec['robot'])}/{name}\[(\d+)\]")
-        return {int(m.group(1)) for m in map(pattern.fullmatch, parameters) if m}
-    if indices("pulley") & indices("offset"):
+    if parameter_indices(parameters, spec["robot"], "pulley") & parameter_indices(parameters, spec["robot"], "offset"):
         return ("to separate a pulley from its cable's offset: poses over a larger volume, moving across the "
                 "cable directions (the cable's direction at the pulley must vary)")
     return None

@@ -20,7 +20,8 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import ROT3, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, Spec, vector_type
+from fusionkit.api import (ROT3, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, parameter_indices, Spec,
+                           vector_type)
 
 from .model import (CORRECTION, FORCE, REFERENCE, cable_count, check_sag_robot, length_columns, sag_robot,
                     shipped_robot)
@@ -92,6 +93,13 @@ class SagCable(FactorType):
                              "columns": {"type": "array", "items": {"type": "string"}},
                              "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
+
+    def separation_hint(self, spec: Spec, parameters: list[str]) -> str | None:
+        """A pulley and its cable's offset trade off as for straight cables, more so with few static poses."""
+        if parameter_indices(parameters, spec["robot"], "pulley") & parameter_indices(parameters, spec["robot"], "offset"):
+            return ("to separate a pulley from its cable's offset: more static poses, spread over the workspace "
+                    "(the cable's direction at the pulley must vary)")
+        return None
 
     def check(self, spec: Spec, scope) -> None:
         n = cable_count(spec, scope)

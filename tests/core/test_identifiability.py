@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from fusionkit.config.loader import load_config
+from fusionkit.api import parameter_indices
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 
@@ -104,3 +105,10 @@ def test_the_cable_quickstart_reports_nothing():
     """No false alarm where the data determine every parameter (issue 32)."""
     report = estimate(load_config(REPO / "configs" / "quickstart.yaml", ["output.plots=false"])).identifiability
     assert len(report.names) == 17 and report.lines() == []
+
+
+def test_parameter_indices_reads_the_elements_a_group_names():
+    names = ["cdpr/pulley[0]", "cdpr/offset[0]", "cdpr/pulley[12]", "other/pulley[1]", "cdpr/pulley_radius"]
+    assert parameter_indices(names, "cdpr", "pulley") == {0, 12}
+    assert parameter_indices(names, "cdpr", "offset") == {0}
+    assert parameter_indices(names, "cdpr", "pulley_radius") == set()
