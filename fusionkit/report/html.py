@@ -100,6 +100,7 @@ def _plots(folder: Path | None) -> str:
 
 
 _RED, _BLUE = "200,40,40", "40,80,200"  # the heat map's colours of a positive and a negative correlation
+HEAT_MAP_MAX = 60  # components beyond which the page refers to report.json for the matrix
 
 
 def _identifiability(result: RunResult) -> str:
@@ -111,6 +112,9 @@ def _identifiability(result: RunResult) -> str:
     lines = report.lines()
     text = f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in lines)}</ul>" if lines else (
         "<p>Every parameter is determined by the data on its own (no |rho| above 0.9, no prior that decides).</p>")
+    if len(report.names) > HEAT_MAP_MAX:
+        return text + (f"<p class=small>{len(report.names)} parameter components: the correlation matrix is in "
+                       "report.json (identifiability.correlation).</p>")
     short = [escape(name.split("/", 1)[1]) for name in report.names]
     head = "<tr><th>rho</th>" + "".join(f"<th class=small>{n}</th>" for n in short) + "</tr>"
     rows = []
