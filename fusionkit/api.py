@@ -46,7 +46,8 @@ API_VERSION = "1.9"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.7: `noise_scale:` on every factor entry (ctx.noise applies it); ctx.add(..., part=) for a factor whose
 #      noise is the plugin's own (neither the entry's kernel nor its scale applies)
 # 1.8: se2 (SE(2) for N planar poses at once, as lie for SE(3))
-# 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report, parameter_indices
+# 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report, parameter_indices,
+#      RobotModel.axis_names (a vector parameter's component names)
 
 __all__ = [
     "API_VERSION", "hookimpl",

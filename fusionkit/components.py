@@ -202,6 +202,12 @@ class RobotModel(Component):
     def check_description(self, desc: "RobotDescription") -> None:
         """Semantic checks of a description after its schema passed (raise `desc.error(...)`)."""
 
+    def axis_names(self, desc: "RobotDescription", parameter: str) -> list[str] | None:
+        """Optional (API 1.9): names of the components of the vector parameter `parameter`, one per dimension
+        (a serial arm's placement errors: the axes its description lists, `tx` ...), for the reports; None:
+        `c0`, `c1`, ... Default: None."""
+        return None
+
     def element_names(self, desc: "RobotDescription", parameter: str) -> list[str] | None:
         """Names of the elements of the indexed parameter `parameter` (one per value, distinct), when the
         model has them: a serial arm names its joint offsets by joint, so the summary, report.json,

@@ -387,10 +387,10 @@ def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifia
         found = (factor_type.separation_hint(spec, parameters) for factor_type, spec in factor_types)
         return list(dict.fromkeys(h for h in found if h))
 
-    def unit(robot: str, name: str) -> str:
-        param = config.robots[robot].description.parameters.get(name) if robot in config.robots else None
-        return param.unit if param is not None and param.unit else ""
-    return identifiability(problem, solution.values, solution.factorization == "qr", hints, unit, solution.linear)
+    def parameter(robot: str, name: str):
+        return config.robots[robot].description.parameters.get(name) if robot in config.robots else None
+    return identifiability(problem, solution.values, solution.factorization == "qr", hints, parameter,
+                           solution.linear)
 
 
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:

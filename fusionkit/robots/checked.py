@@ -15,7 +15,8 @@ from .registered import is_description_name, registered_document
 def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
     """`desc` after its robot model (registry `reg`) validated the model keys (its `schema`) and ran
     `check_description`; errors are located in the description's file. Each indexed parameter gets the
-    names of its elements the model gives (`Parameter.elements`)."""
+    names of its elements the model gives (`Parameter.elements`), a vector parameter those of its components
+    (`Parameter.axes`)."""
     model = reg.get("robot_models", desc.model)
     if model is None:
         raise desc.error(("model",), reg.unknown("robot_models", desc.model))
@@ -26,6 +27,13 @@ def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
     instance = model()
     instance.check_description(desc)
     for name, param in desc.parameters.items():
+        axes = instance.axis_names(desc, name)
+        if axes is not None:
+            axes = tuple(str(a) for a in axes)
+            if len(axes) != param.vartype.dim or len(set(axes)) != len(axes):
+                raise PluginError(f"robot model {model.name}: axis_names gave {list(axes)} for parameter {name!r} of "
+                                  f"{desc.name!r}; expected {param.vartype.dim} distinct names (plugin bug)")
+            param.axes = axes
         names = instance.element_names(desc, name) if param.indexed else None
         if names is None:
             continue

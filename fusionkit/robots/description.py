@@ -93,6 +93,7 @@ class Parameter:
     fixed: bool = False
     known: bool = True
     elements: tuple[str, ...] | None = None
+    axes: tuple[str, ...] | None = None  # a vector parameter's component names (`RobotModel.axis_names`)
 
     @property
     def count(self) -> int:

@@ -144,11 +144,12 @@ def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr
 
 
 def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hints=None,
-                    unit=None, linear: gtsam.GaussianFactorGraph | None = None) -> Identifiability | None:
+                    parameter=None, linear: gtsam.GaussianFactorGraph | None = None) -> Identifiability | None:
     """The report for `problem`'s parameters at the estimate `values`; None without parameters, or with more
     than MAX_DIM components. `hints(names)`: what would separate a group of parameters (their full names,
-    `robot/name`), a list of sentences; `unit(robot, name)`: a scalar or vector parameter's unit ("" if none;
-    pose axes are rad and m); `linear`: the graph linearized at `values`, if at hand."""
+    `robot/name`), a list of sentences; `parameter(robot, name)`: the description's Parameter (its unit and
+    component names; pose axes are rad and m), None if none; `linear`: the graph linearized at `values`, if at
+    hand."""
     keys = parameter_keys(problem)
     dims = [problem.keys.decode(k)[0].vartype.dim for k in keys]
     if not keys or sum(dims) > MAX_DIM:
@@ -157,7 +158,8 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
     names, units, owner, kept = [], [], [], []
     for k, dim in zip(keys, dims):
         family, _ = problem.keys.decode(k)
-        axes = component_names(family.vartype)[1]
+        declared = parameter(family.robot, family.name) if parameter else None
+        axes = declared.axes if declared is not None and declared.axes else component_names(family.vartype)[1]
         base = problem.keys.name_of(k)
         held = problem.held[k].axes if k in problem.held else ()
         for axis in range(dim):
@@ -165,7 +167,7 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
             if axis in held:
                 continue
             names.append(base if dim == 1 else f"{base}.{axes[axis]}")
-            units.append(_unit(family, axes[axis], unit))
+            units.append(_unit(family, axes[axis], declared))
             owner.append(base)
     prior_sigma = _prior_sigmas(problem, keys, dims, np.flatnonzero(kept))
     covariance = covariance[np.ix_(kept, kept)]
@@ -191,10 +193,10 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
     return Identifiability(names, units, sigma, correlation, prior_sigma, pairs, decides, rests_on, directions)
 
 
-def _unit(family, axis: str, unit) -> str:
+def _unit(family, axis: str, declared) -> str:
     if family.vartype.name in ("pose3", "pose2", "rot3"):
         return "rad" if axis.startswith("r") else "m"
-    return unit(family.robot, family.name) if unit else ""
+    return declared.unit if declared is not None and declared.unit else ""
 
 
 def _prior_sigmas(problem: Problem, keys: list[int], dims: list[int], kept: np.ndarray) -> dict[int, float]:

@@ -159,6 +159,11 @@ class SerialArmModel(RobotModel):
         """A kinematic group's parameter has one element per joint: named by the joint."""
         return group_joints(desc.extra, parameter)
 
+    def axis_names(self, desc: RobotDescription, parameter: str) -> list[str] | None:
+        """A placement group's vector components are the axes its description lists (`tx`, ..., `rz`)."""
+        kin = desc.extra.get("kinematics") or {}
+        return next((list(g["axes"]) for g in kin.get("placements", ()) if g["parameter"] == parameter), None)
+
     def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
         """The arm as a polyline through its joints' origins to the tool frame, at the state's joint vector plus
         the calibrated joint offsets, placed by the calibrated base pose (nominal link placements)."""

@@ -112,3 +112,12 @@ def test_parameter_indices_reads_the_elements_a_group_names():
     assert parameter_indices(names, "cdpr", "pulley") == {0, 12}
     assert parameter_indices(names, "cdpr", "offset") == {0}
     assert parameter_indices(names, "cdpr", "pulley_radius") == set()
+
+
+def test_a_serial_arms_placement_components_are_named_by_its_descriptions_axes():
+    """RobotModel.axis_names: `placement[elbow_joint].tz`, not `.c2`; held axes are left out (arm_calibration holds
+    tx, ty, ry of that joint)."""
+    report = estimate(load_config(REPO / "configs" / "arm_calibration.yaml", ["output.plots=false"])).identifiability
+    elbow = [n for n in report.names if n.startswith("arm/placement[elbow_joint].")]
+    assert elbow == ["arm/placement[elbow_joint].tz", "arm/placement[elbow_joint].rx", "arm/placement[elbow_joint].rz"]
+    assert not any(n.endswith((".c0", ".c1", ".c2")) for n in report.names)
