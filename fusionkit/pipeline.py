@@ -380,6 +380,13 @@ def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifia
     smoother's estimate is not the whole graph's, so it has none."""
     if not config.solver["marginals"] or config.solver["type"] == "fixed_lag":
         return None
+    return identifiability_report(config, problem, solution.values, solution.factorization == "qr", solution.linear)
+
+
+def identifiability_report(config: RunConfig, problem: Problem, values: gtsam.Values, qr: bool = False,
+                           linear: gtsam.GaussianFactorGraph | None = None) -> Identifiability | None:
+    """solve/identifiability.py's report at `values` (`run`: the estimate; `validate`: the initial values), with
+    the factor types' hints and the descriptions' units and component names."""
     reg = registry()
     factor_types = [(reg.get("factor_types", spec.type)(), spec) for spec in config.factors]
 
@@ -389,8 +396,7 @@ def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifia
 
     def parameter(robot: str, name: str):
         return config.robots[robot].description.parameters.get(name) if robot in config.robots else None
-    return identifiability(problem, solution.values, solution.factorization == "qr", hints, parameter,
-                           solution.linear)
+    return identifiability(problem, values, qr, hints, parameter, linear)
 
 
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:

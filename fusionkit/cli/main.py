@@ -72,7 +72,7 @@ def _status(progress):
 
 def cmd_validate(args) -> int:
     from ..config.loader import load_config
-    from ..pipeline import build_problem, read_sources
+    from ..pipeline import build_problem, identifiability_report, read_sources
     from ..report.summary import diagnostic_lines
     from ..solve.checks import check_constrained
     from ..solve.factorization import linear_settings
@@ -100,6 +100,12 @@ def cmd_validate(args) -> int:
         print(f"  {problem.keys.name_of(key)}: fixed (held at its value, not estimated)")
     for line in diagnostic_lines(problem.diagnostics):
         print(line)
+    report = identifiability_report(config, problem, problem.initial, checked.qr, checked.linear)
+    if report is not None and report.lines():
+        print("  identifiability at the initial values (what this recording can tell; `run` reports it at the "
+              "estimate):")
+        for line in report.lines():
+            print(f"    {line}")
     for note in problem.notes:
         print(f"  note: {note}")
     return 0

@@ -121,3 +121,19 @@ def test_a_serial_arms_placement_components_are_named_by_its_descriptions_axes()
     elbow = [n for n in report.names if n.startswith("arm/placement[elbow_joint].")]
     assert elbow == ["arm/placement[elbow_joint].tz", "arm/placement[elbow_joint].rx", "arm/placement[elbow_joint].rz"]
     assert not any(n.endswith((".c0", ".c1", ".c2")) for n in report.names)
+
+
+def test_validate_reports_what_the_recording_can_tell_before_solving(tmp_path, capsys):
+    """`fusionkit validate` on a square run: the same relation at the initial values, before any solve."""
+    from fusionkit.cli.main import main
+    folder = tmp_path / "square"
+    assert main(["simulate", "wheels.sim", "--out", str(folder), "--seed", "1", "-q", "--set", "path=square",
+                 "--set", "duration=20"]) == 0
+    capsys.readouterr()
+    assert main(["validate", str(folder / "config.yaml")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    start = lines.index("  identifiability at the initial values (what this recording can tell; `run` reports it at "
+                        "the estimate):")
+    section = "\n".join(lines[start + 1:])
+    assert "rests on the prior of robot/axle_length: robot/gyro_scale" in section
+    assert "to separate axle length and gyro scale: turn both ways" in section
