@@ -380,7 +380,11 @@ def _identifiability(config: RunConfig, problem: Problem, solution) -> Identifia
     smoother's estimate is not the whole graph's, so it has none."""
     if not config.solver["marginals"] or config.solver["type"] == "fixed_lag":
         return None
-    return identifiability_report(config, problem, solution.values, solution.factorization == "qr", solution.linear)
+    report = identifiability_report(config, problem, solution.values, solution.factorization == "qr",
+                                    solution.linear)
+    if report is not None and solution.sigmas_scaled:
+        report.scaled(solution.sigma0)
+    return report
 
 
 def identifiability_report(config: RunConfig, problem: Problem, values: gtsam.Values, qr: bool = False,
@@ -396,7 +400,11 @@ def identifiability_report(config: RunConfig, problem: Problem, values: gtsam.Va
 
     def parameter(robot: str, name: str):
         return config.robots[robot].description.parameters.get(name) if robot in config.robots else None
-    return identifiability(problem, values, qr, hints, parameter, linear)
+    try:
+        return identifiability(problem, values, qr, hints, parameter, linear)
+    except (RuntimeError, np.linalg.LinAlgError) as exc:  # a system GTSAM cannot eliminate even by QR there
+        problem.notes.append(f"identifiability report not computed: {str(exc).splitlines()[0][:200]}")
+        return None
 
 
 def baseline_errors(baselines: dict[str, dict[str, Stream]], trajectories: dict[str, Stream], truth: Truth) -> dict:

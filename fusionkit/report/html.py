@@ -108,7 +108,8 @@ def _identifiability(result: RunResult) -> str:
     whose cells are shaded by |rho|, red for positive, blue for negative)."""
     report = result.identifiability
     if report is None:
-        return "<p>Not computed (no parameters, solver.marginals false, or the fixed-lag smoother).</p>"
+        return ("<p>Not computed: no parameters (or every axis held), more than 400 components, solver.marginals "
+                "false, or the fixed-lag smoother.</p>")
     lines = report.lines()
     text = f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in lines)}</ul>" if lines else (
         "<p>Every parameter is determined by the data on its own (no |rho| above 0.9, no prior that decides).</p>")

@@ -1,9 +1,9 @@
 """What the data determine of the calibration parameters, from the estimate alone (no truth, no second solve).
 
-The parameters are the static unknowns (not held, not fixed). Their joint posterior covariance S is the
-inverse of their marginal information: the graph linearized at the estimate, every other variable
-eliminated (GTSAM's partial multifrontal elimination: what is left is the Schur complement on the
-parameters). From S, per scalar component (a pose parameter's tangent axes named like `arm/base.rz`):
+The parameters are the static unknowns (not fixed; axes a factor holds are left out). Their joint posterior
+covariance S is the inverse of their marginal information: the graph linearized at the estimate, every other
+variable eliminated (GTSAM's partial multifrontal elimination: what is left is the Schur complement on the
+parameters), the held axes' rows and columns dropped before inverting (they are pinned). From S, per scalar component (a pose parameter's tangent axes named like `arm/base.rz`):
 
 - **correlated pairs**: |rho| > CORRELATED. The data fix a combination of the two, not each.
 - **the prior decides**: a component with a prior whose posterior sigma exceeds PRIOR_DECIDES times the
@@ -61,6 +61,13 @@ class Identifiability:
     rests_on: list[tuple[int, int, float]]  # (component, prior-decided component, sigmas moved per prior sigma)
     directions: list[Direction]
 
+    def scaled(self, factor: float) -> None:
+        """Sigmas and steps multiplied by `factor` (sigma0 under solver.a_posteriori_sigmas, as the covariances
+        are); correlations and the judgements made against the priors stay as computed."""
+        self.sigma = self.sigma * factor
+        for d in self.directions:
+            d.step = [s * factor for s in d.step]
+
     def to_json(self) -> dict:
         return {"parameters": self.names, "units": self.units, "sigma": self.sigma.tolist(),
                 "correlation": np.round(self.correlation, 4).tolist(),
@@ -89,7 +96,7 @@ class Identifiability:
         if len(self.rests_on) > SHOWN:
             out.append(f"... and {len(self.rests_on) - SHOWN} more resting on priors (report.json)")
         for d in self.directions[:SHOWN]:
-            inside = [r for i, j, r in self.pairs if i in d.members and j in d.members]
+            inside = [float(self.correlation[i, j]) for a, i in enumerate(d.members) for j in d.members[a + 1:]]
             rho = f"; rho {min(inside):+.2f} .. {max(inside):+.2f}" if len(inside) > 1 else (
                 f"; rho {inside[0]:+.2f}" if inside else "")
             along = ", ".join(f"{s:+.3g}{(' ' + self.units[i]) if self.units[i] else ''} {self.names[i]}"
@@ -117,11 +124,10 @@ def parameter_keys(problem: Problem) -> list[int]:
     return sorted(k for k, t in problem.key_time.items() if t == STATIC and k not in problem.fixed_keys)
 
 
-def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
-                     linear: gtsam.GaussianFactorGraph | None = None) -> np.ndarray:
-    """The joint posterior covariance of `keys` (their tangent spaces, in `keys`' order) at `values` (`linear`:
-    the graph linearized there, if at hand): every other variable eliminated, the information left on `keys`
-    inverted."""
+def marginal_information(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
+                         linear: gtsam.GaussianFactorGraph | None = None) -> np.ndarray:
+    """The information of `keys` (their tangent spaces, in `keys`' order) at `values` (`linear`: the graph
+    linearized there, if at hand), every other variable eliminated: the Schur complement on `keys`."""
     linear = problem.evaluator().linearize(values) if linear is None else linear
     full = gtsam.Ordering.ColamdConstrainedLastGaussianFactorGraph(linear, gtsam.KeyVector(keys))
     wanted = set(keys)
@@ -140,7 +146,19 @@ def joint_covariance(problem: Problem, values: gtsam.Values, keys: list[int], qr
     for k in keys:
         order.push_back(k)
     information = rest.augmentedHessian(order)[:-1, :-1]
-    return np.linalg.pinv(0.5 * (information + information.T), hermitian=True)
+    return 0.5 * (information + information.T)
+
+
+def covariance_of(information: np.ndarray) -> np.ndarray:
+    """The inverse of an information matrix, scaled to unit diagonal first (the components' units differ by
+    orders of magnitude); a singular one by its pseudo-inverse."""
+    d = np.sqrt(np.maximum(np.diag(information), np.finfo(float).tiny))
+    scaled = information / np.outer(d, d)
+    try:
+        inverse = np.linalg.inv(scaled)
+    except np.linalg.LinAlgError:
+        inverse = np.linalg.pinv(scaled, hermitian=True)
+    return inverse / np.outer(d, d)
 
 
 def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hints=None,
@@ -154,7 +172,7 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
     dims = [problem.keys.decode(k)[0].vartype.dim for k in keys]
     if not keys or sum(dims) > MAX_DIM:
         return None
-    covariance = joint_covariance(problem, values, keys, qr, linear)
+    information = marginal_information(problem, values, keys, qr, linear)
     names, units, owner, kept = [], [], [], []
     for k, dim in zip(keys, dims):
         family, _ = problem.keys.decode(k)
@@ -170,9 +188,9 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
             units.append(_unit(family, axes[axis], declared))
             owner.append(base)
     prior_sigma = _prior_sigmas(problem, keys, dims, np.flatnonzero(kept))
-    covariance = covariance[np.ix_(kept, kept)]
     if not names:
         return None
+    covariance = covariance_of(information[np.ix_(kept, kept)])  # held axes pinned: conditioned on them
     sigma = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     scale = np.where(sigma > 0, sigma, 1.0)
     correlation = covariance / np.outer(scale, scale)

@@ -9,7 +9,9 @@ VARIANCE_FACTOR or below its inverse (sigmas off by more than 41 %), what change
 Either names the entries responsible by their own variance factor, chi-square / redundancy (noise_scales.py:
 E[chi2_g] = r_g for an entry g with the right sigmas), those beyond chance on their own redundancy first.
 A chi-square beyond solver.max_cost_ratio per dof is the gate's rejection, not a warning; the fixed-lag
-smoother's estimate is no least-squares estimate of the whole graph (health.py judges it by windows)."""
+smoother's estimate is no least-squares estimate of the whole graph (health.py judges it by windows); with a
+robust loss on any factor the cost is no chi-square (a Cauchy loss with the right sigmas gives about 0.3 per
+row): not judged."""
 
 from __future__ import annotations
 
@@ -33,7 +35,7 @@ def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: 
     beyond its 1 - P or below its P quantile for `dof`, and chi2/dof beyond VARIANCE_FACTOR or below its
     inverse; none when the sigmas are scaled a posteriori
     (`solver.a_posteriori_sigmas`) or the gate rejects the fit."""
-    if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag":
+    if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag" or _robust(problem):
         return []
     per_dof = chi2_total / dof
     low, high = chi2.ppf(P, dof), chi2.ppf(1 - P, dof)
@@ -68,6 +70,12 @@ def _entries_text(problem: Problem, values: gtsam.Values, settings: dict, over: 
     more = f", and {len(beyond) - NAMED} more" if len(beyond) > NAMED else ""
     return ", ".join(f"{label} {fit.variance_factor:.3g} (redundancy {fit.redundancy:.3g} of {fit.rows} rows)"
                      for label, fit in shown) + more
+
+
+def _robust(problem: Problem) -> bool:
+    """Whether a factor has a robust loss: its cost (capped for outliers) is then no chi-square."""
+    return any(isinstance(r.factor.noiseModel(), gtsam.noiseModel.Robust) for r in problem.records
+               if hasattr(r.factor, "noiseModel"))
 
 
 def _beyond(fit: EntryFit, over: bool) -> bool:

@@ -97,8 +97,9 @@ def _conflict_text(problem: Problem, values: gtsam.Values, covariances: dict[int
         return f"{t.name} (chi-square {t.statistic:.3g} on {t.dof} directions)"
     value, sigma = float(np.ravel(vt.read(values, t.key))[0]), float(np.sqrt(covariances[t.key][0, 0]))
     mean, prior_sigma = float(np.ravel(t.factor.prior())[0]), float(t.factor.noiseModel().sigmas()[0])
-    return (f"{t.name} = {value:.5g} ± {sigma:.2g}, {np.sqrt(t.statistic):.3g} sigma from its prior "
-            f"{mean:.5g} ± {prior_sigma:.2g}")
+    return (f"{t.name} = {value:.5g} ± {sigma:.2g}, {abs(value - mean) / prior_sigma:.3g} prior sigmas from its "
+            f"prior {mean:.5g} ± {prior_sigma:.2g} ({np.sqrt(t.statistic):.3g} sigma of that difference, whose "
+            "sigma is sqrt(prior^2 - posterior^2))")
 
 
 def _members_text(problem: Problem, keys: list[int]) -> str:

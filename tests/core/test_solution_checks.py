@@ -48,7 +48,8 @@ def test_a_tight_prior_the_data_contradict_is_prior_conflict_at_the_bonferroni_b
     (w,) = [w for w in result.solution.warnings if w.name == "prior_conflict"]
     assert w.message.startswith("the data pull 1 of 1 parameters beyond chance from their priors (beyond the "
                                 f"1 - 0.001/1 quantile): cam/vo_scale = {value:.5g} ± ")
-    assert f"{sigmas:.3g} sigma from its prior 1 ± 0.1" in w.message
+    assert f"{abs(value - 1.0) / 0.1:.3g} prior sigmas from its prior 1 ± 0.1 ({sigmas:.3g} sigma of that difference" \
+        in w.message
 
 
 def test_a_prior_no_data_inform_is_prior_only_and_not_tested(ds):
