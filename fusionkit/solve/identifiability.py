@@ -28,6 +28,7 @@ import numpy as np
 
 from ..graph.builder import Problem
 from ..graph.variables import component_names
+from .prior_check import description_priors
 
 CORRELATED = 0.9  # |rho| beyond which two components are reported as confused
 PRIOR_DECIDES = 0.7  # posterior sigma over prior sigma beyond which the prior, not the data, decides
@@ -223,13 +224,13 @@ def _prior_sigmas(problem: Problem, keys: list[int], dims: list[int], kept: np.n
     start = dict(zip(keys, np.cumsum([0] + dims[:-1])))
     reported = {int(c): i for i, c in enumerate(kept)}
     out = {}
-    for record in problem.records:
-        factor_keys = list(record.factor.keys())
-        if record.label.startswith("prior:") and len(factor_keys) == 1 and factor_keys[0] in start:
-            for axis, s in enumerate(record.factor.noiseModel().sigmas()):
-                component = int(start[factor_keys[0]]) + axis
-                if component in reported:
-                    out[reported[component]] = float(s)
+    for key, factor in description_priors(problem):
+        if key not in start:
+            continue
+        for axis, s in enumerate(factor.noiseModel().sigmas()):
+            component = int(start[key]) + axis
+            if component in reported:
+                out[reported[component]] = float(s)
     return out
 
 

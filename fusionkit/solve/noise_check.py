@@ -35,13 +35,13 @@ def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: 
     beyond its 1 - P or below its P quantile for `dof`, and chi2/dof beyond VARIANCE_FACTOR or below its
     inverse; none when the sigmas are scaled a posteriori
     (`solver.a_posteriori_sigmas`) or the gate rejects the fit."""
-    if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag" or _robust(problem):
+    if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag":
         return []
     per_dof = chi2_total / dof
     low, high = chi2.ppf(P, dof), chi2.ppf(1 - P, dof)
     if low <= chi2_total <= high or per_dof > settings["max_cost_ratio"]:
         return []
-    if 1 / VARIANCE_FACTOR <= per_dof <= VARIANCE_FACTOR:
+    if 1 / VARIANCE_FACTOR <= per_dof <= VARIANCE_FACTOR or _robust(problem):  # the scan of every factor last
         return []
     over = bool(chi2_total > high)
     times = np.sqrt(per_dof) if over else 1 / np.sqrt(max(per_dof, 1e-300))

@@ -47,21 +47,27 @@ class PriorTest:
     dim: int
 
 
+def description_priors(problem: Problem) -> list[tuple[int, gtsam.NonlinearFactor]]:
+    """(key, prior factor) of each robot description's prior on a parameter (builder label `prior:robot/name`)."""
+    out = []
+    for record in problem.records:
+        keys = list(record.factor.keys())
+        if record.label.startswith(PRIOR_LABEL) and len(keys) == 1:
+            out.append((keys[0], record.factor))
+    return out
+
+
 def prior_tests(problem: Problem, values: gtsam.Values, covariances: dict[int, np.ndarray]) -> list[PriorTest]:
     """The test of each description prior on a parameter with a posterior covariance in `covariances`."""
     tests = []
-    for record in problem.records:
-        keys = list(record.factor.keys())
-        if not record.label.startswith(PRIOR_LABEL) or len(keys) != 1:
-            continue
-        key = keys[0]
+    for key, factor in description_priors(problem):
         if key in problem.held or key in problem.fixed_keys or key not in covariances:
             continue
-        A, b = record.factor.linearize(values).jacobian()  # whitened; b = -e
+        A, b = factor.linearize(values).jacobian()  # whitened; b = -e
         q, u = np.linalg.eigh(np.eye(len(b)) - A @ covariances[key] @ A.T)
         informed = q >= DATA_SHARE
         statistic = float(np.sum((u[:, informed].T @ b) ** 2 / q[informed]))
-        tests.append(PriorTest(record.factor, key, problem.keys.name_of(key), statistic, int(informed.sum()),
+        tests.append(PriorTest(factor, key, problem.keys.name_of(key), statistic, int(informed.sum()),
                                int((~informed).sum()), len(b)))
     return tests
 
