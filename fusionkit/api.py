@@ -10,8 +10,8 @@ version adds names, a major one changes or removes them. docs/plugin_guide.md do
 from __future__ import annotations
 
 from . import hookimpl, lie, se2
-from .components import (CheckScope, Command, FactorType, Initializer, RobotModel, Simulator, Source, SourceOutput,
-                         Spec)
+from .components import (CheckScope, Command, FactorType, Initializer, ResidualPart, RobotModel, Simulator, Source,
+                         SourceOutput, Spec, pose_parts)
 from .data.files import read_csv_stream
 from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
 from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
@@ -33,7 +33,7 @@ from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.9"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -48,11 +48,13 @@ API_VERSION = "1.9"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec)
 # 1.8: se2 (SE(2) for N planar poses at once, as lie for SE(3))
 # 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report, parameter_indices,
 #      RobotModel.axis_names (a vector parameter's component names)
+# 1.10: FactorType.residual_parts(ctx, spec) with ResidualPart: the named parts of a residual that
+#      `fusionkit crossval` reports held-out errors of, pose_parts (a pose residual's position and orientation)
 
 __all__ = [
     "API_VERSION", "hookimpl",
     # components a plugin provides, and what they are given
-    "CheckScope", "FactorType", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
+    "CheckScope", "FactorType", "ResidualPart", "pose_parts", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
     "RobotDescription", "Parameter", "Sensor",
     # robot descriptions shipped as package data, by name; a description by name or file, checked
     "robot_description_files", "robot_description_data", "load_robot_description",

@@ -127,6 +127,23 @@ class CheckScope:
                              f"column(s) {', '.join(missing)}; it has {', '.join(have) or '(none)'}")
 
 
+@dataclass(frozen=True)
+class ResidualPart:
+    """A named part of a factor's residual: its rows and their unit (`FactorType.residual_parts`)."""
+
+    name: str  # e.g. "position"
+    unit: str  # e.g. "m"
+    rows: tuple[int, ...]
+
+
+def pose_parts(planar: bool) -> list[ResidualPart]:
+    """The parts of a pose residual in GTSAM's tangent order: Pose3 (rx ry rz, tx ty tz) orientation (rad) and
+    position (m); Pose2 (x, y, theta) position (m) and heading (rad)."""
+    if planar:
+        return [ResidualPart("position", "m", (0, 1)), ResidualPart("heading", "rad", (2,))]
+    return [ResidualPart("position", "m", (3, 4, 5)), ResidualPart("orientation", "rad", (0, 1, 2))]
+
+
 class FactorType(Component):
     """Turns one config entry into factors: `build()` calls `ctx.add(...)` per factor.
 
@@ -166,6 +183,12 @@ class FactorType(Component):
         identifiability report's group). If this entry's model knows what motion or measurement separates
         them, one sentence saying so (it is printed after the group); else None. Default: None."""
         return None
+
+    def residual_parts(self, ctx: "BuildContext", spec: Spec) -> list["ResidualPart"]:
+        """Optional (API 1.10): named parts of this entry's residual (unwhitened, in the factor's units) whose
+        norms `fusionkit crossval` reports as held-out prediction errors, e.g. a 6-D pose's orientation (rad,
+        rows 0-2) and position (m, rows 3-5). Default: none, the whole residual as one part `residual`."""
+        return []
 
     @classmethod
     @abstractmethod

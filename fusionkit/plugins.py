@@ -26,6 +26,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.robots.generic",
     "fusionkit.time_offset.guess",
     "fusionkit.sweep",
+    "fusionkit.crossval.command",
 )
 OWN_DISTRIBUTION = "fusionkit"  # its entry-point plugins load first: a third-party name clash loses
 

@@ -36,6 +36,7 @@ from .components import Command
 from .config.yamlio import load_yaml
 from .config.schema import validate_against
 from .errors import ConfigError, FusionkitError
+from .parallel import BACKENDS, run_tasks
 
 SCHEMA = {"type": "object",
           "properties": {"config": {"type": "string"},
@@ -103,21 +104,7 @@ def run_one(config: str, overrides: dict[str, Any], figures: list[str]) -> dict[
 
 def execute(config: str, settings: list[dict], figures: list[str], backend: str, workers: int) -> list[dict]:
     """Every run's results, in the order of `settings`, on a local process pool or Ray."""
-    if backend == "ray":
-        try:
-            import ray
-        except ImportError:
-            raise ConfigError("--backend ray needs Ray: pip install ray (or pip install 'fusionkit[scale]')") from None
-        if not ray.is_initialized():
-            ray.init(ignore_reinit_error=True, include_dashboard=False, log_to_driver=False,
-                     logging_level="error")
-        task = ray.remote(num_cpus=1)(run_one)
-        return ray.get([task.remote(config, s, figures) for s in settings])
-    if workers <= 1:
-        return [run_one(config, s, figures) for s in settings]
-    from concurrent.futures import ProcessPoolExecutor
-    with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(run_one, [config] * len(settings), settings, [figures] * len(settings)))
+    return run_tasks(run_one, [(config, s, figures) for s in settings], backend, workers)
 
 
 def _cell(value: Any) -> Any:
@@ -198,7 +185,7 @@ class Sweep(Command):
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("sweep", help="the sweep file (YAML)")
         parser.add_argument("--out", help="folder for sweep.csv, summary.txt and plots/")
-        parser.add_argument("--backend", choices=["local", "ray"], default="local",
+        parser.add_argument("--backend", choices=BACKENDS, default="local",
                             help="local process pool (default) or a Ray cluster (RAY_ADDRESS, or a local one)")
         parser.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
 

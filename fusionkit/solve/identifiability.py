@@ -125,10 +125,10 @@ def parameter_keys(problem: Problem) -> list[int]:
     return sorted(k for k, t in problem.key_time.items() if t == STATIC and k not in problem.fixed_keys)
 
 
-def marginal_information(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
-                         linear: gtsam.GaussianFactorGraph | None = None) -> np.ndarray:
-    """The information of `keys` (their tangent spaces, in `keys`' order) at `values` (`linear`: the graph
-    linearized there, if at hand), every other variable eliminated: the Schur complement on `keys`."""
+def marginal_factors(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
+                     linear: gtsam.GaussianFactorGraph | None = None) -> gtsam.GaussianFactorGraph:
+    """What the graph says of `keys` at `values` (`linear`: the graph linearized there, if at hand), every other
+    variable eliminated: linear factors on `keys` alone, whose information is the Schur complement on them."""
     linear = problem.evaluator().linearize(values) if linear is None else linear
     full = gtsam.Ordering.ColamdConstrainedLastGaussianFactorGraph(linear, gtsam.KeyVector(keys))
     wanted = set(keys)
@@ -143,6 +143,14 @@ def marginal_information(problem: Problem, values: gtsam.Values, keys: list[int]
         if qr:
             raise
         _, rest = linear.eliminatePartialMultifrontal(others, gtsam.EliminateQR)
+    return rest
+
+
+def marginal_information(problem: Problem, values: gtsam.Values, keys: list[int], qr: bool = False,
+                         linear: gtsam.GaussianFactorGraph | None = None) -> np.ndarray:
+    """The information of `keys` (their tangent spaces, in `keys`' order) at `values`, every other variable
+    eliminated: the Schur complement on `keys` (marginal_factors as one matrix)."""
+    rest = marginal_factors(problem, values, keys, qr, linear)
     order = gtsam.Ordering()
     for k in keys:
         order.push_back(k)

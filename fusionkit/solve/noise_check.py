@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
-from scipy.stats import chi2
 
 from ..graph.builder import Problem
 from .health import WINDOW_P as P  # the chi-square's tail probability beyond which the sigmas are judged wrong
 from .noise_scales import EntryFit, redundancies
 from .result import SolveWarning
+from . import chi_square
 
 VARIANCE_FACTOR = 2.0  # chi2/dof beyond it or below its inverse (and beyond chance) is judged
 MIN_REDUNDANCY = 0.5  # an entry with less redundancy (a prior the data barely test) is not named
@@ -38,7 +38,7 @@ def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: 
     if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag":
         return []
     per_dof = chi2_total / dof
-    low, high = chi2.ppf(P, dof), chi2.ppf(1 - P, dof)
+    low, high = chi_square.quantile(P, dof), chi_square.quantile(1 - P, dof)
     if low <= chi2_total <= high or per_dof > settings["max_cost_ratio"]:
         return []
     if 1 / VARIANCE_FACTOR <= per_dof <= VARIANCE_FACTOR or _robust(problem):  # the scan of every factor last
@@ -79,4 +79,4 @@ def _robust(problem: Problem) -> bool:
 
 
 def _beyond(fit: EntryFit, over: bool) -> bool:
-    return fit.chi2 > chi2.ppf(1 - P, fit.redundancy) if over else fit.chi2 < chi2.ppf(P, fit.redundancy)
+    return fit.chi2 > chi_square.quantile(1 - P, fit.redundancy) if over else fit.chi2 < chi_square.quantile(P, fit.redundancy)

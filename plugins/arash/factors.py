@@ -10,7 +10,7 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType,
-                           Spec, gaussian, pose_sigmas, poses_from_array)
+                           ResidualPart, Spec, gaussian, pose_sigmas, poses_from_array)
 
 from .kinematics import CONVENTIONS
 from .model import JOINTS, PARAMETERS, convention_of
@@ -123,6 +123,10 @@ class ToolPosition(FactorType):
         for k, z in zip(assoc.state.tolist(), measurements(ctx, spec)[assoc.row]):
             factor = tool_position_factor(ctx.state_key(robot, k), parameter_keys(ctx, robot, k), z, convention, noise)
             ctx.add(factor, spec, ctx.state_time(robot, k))
+
+    def residual_parts(self, ctx, spec: Spec):
+        """The tool tip's position, in the convention's length unit."""
+        return [ResidualPart("position", CONVENTIONS[convention_of(ctx.robot(spec['robot']))], (0, 1, 2))]
 
     @classmethod
     def example(cls, rng):

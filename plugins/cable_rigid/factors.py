@@ -8,8 +8,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, parameter_indices, range_factor,
-                           Spec, Stream, vectorized_factor)
+from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, gaussian, parameter_indices,
+                           range_factor, Spec, Stream, vectorized_factor)
+
+LENGTH_PART = [ResidualPart("length", "m", (0,))]  # a cable-length residual (m)
 
 from .kinematics import forward_kinematics
 from .model import cable_robot
@@ -118,6 +120,9 @@ class CableLength(FactorType):
         from .observability import diagnose_cable_lengths
         diagnose_cable_lengths(ctx, spec)
 
+    def residual_parts(self, ctx, spec: Spec):
+        return LENGTH_PART
+
     @classmethod
     def example(cls, rng):
         """Half of the examples over a swivelling pulley of 3-8 cm (the attachment point 1-2 m below it)."""
@@ -208,6 +213,9 @@ class ElasticCableLength(FactorType):
             keys = [[ctx.pose_key(robot, k), pulley, offset] for k, _ in pairs]
             add_cables(ctx, spec, cdpr, keys, [cdpr.attachments[i]] * len(keys), stretch, z, sigma,
                        [ctx.state_time(robot, k) for k, _ in pairs])
+
+    def residual_parts(self, ctx, spec: Spec):
+        return LENGTH_PART
 
     @classmethod
     def example(cls, rng):

@@ -8,8 +8,8 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
-                           FactorType, gaussian, interpolate_poses, pose_sigmas, poses_from_array, segment_ids, Spec,
-                           Stream, vectorized_factor)
+                           FactorType, gaussian, interpolate_poses, pose_parts, pose_sigmas, poses_from_array, segment_ids,
+                           Spec, Stream, vectorized_factor)
 
 from .residuals import CO_REGISTRATION, SCALED_BETWEEN
 
@@ -114,6 +114,9 @@ class AbsolutePose(FactorType):
                 gtsam.PriorFactorPose3(key, body, noise)
             ctx.add(factor, spec, ctx.state_time(robot, int(k)))
 
+    def residual_parts(self, ctx, spec: Spec):
+        return pose_parts(ctx.state_set(spec["robot"]).family.vartype is POSE2)
+
     @classmethod
     def example(cls, rng):
         x = gtsam.Pose3.Expmap(rng.normal(size=6))
@@ -177,6 +180,9 @@ class RelativePose(FactorType):
             factor = gtsam.BetweenFactorPose2(a, b, to_pose2(delta), noise) if planar else \
                 gtsam.BetweenFactorPose3(a, b, delta, noise)
             ctx.add(factor, spec, t)
+
+    def residual_parts(self, ctx, spec: Spec):
+        return pose_parts(ctx.state_set(spec["robot"]).family.vartype is POSE2)
 
     @classmethod
     def example(cls, rng):

@@ -12,8 +12,8 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian,
-                           pose_sigmas)
+from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, Spec,
+                           gaussian, pose_parts, pose_sigmas)
 
 from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
@@ -120,6 +120,10 @@ class ArmMeasurement(FactorType):
         evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows), keys)
         for i, (pair, key_list) in enumerate(zip(states.tolist(), keys)):
             ctx.add(marker_factor(noise, key_list, evaluator, i), spec, ctx.state_time(robot, pair[-1]))
+
+    def residual_parts(self, ctx, spec: Spec):
+        """A pose (or motion) residual's position and orientation; a position residual is all position."""
+        return pose_parts(False) if self.kind != "position" else [ResidualPart("position", "m", (0, 1, 2))]
 
     def diagnose(self, ctx, spec: Spec) -> None:
         """Identifiability of the robot's kinematic parameters (run once, by its first marker entry)."""

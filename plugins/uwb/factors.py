@@ -17,8 +17,10 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, range_factor,
-                           Spec, vectorized_factor)
+from fusionkit.api import (POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, gaussian,
+                           range_factor, Spec, vectorized_factor)
+
+RANGE_PART = [ResidualPart("range", "m", (0,))]  # a range residual (m)
 
 from .residuals import TAG_RANGES, scaled_range_residual
 
@@ -208,6 +210,9 @@ class UwbRange(FactorType):
                 f"a bias -- estimate it with `scale:` (a scalar parameter of robot {spec['robot']!r}, e.g. "
                 "uwb_scale: {value: 0.0, sigma: 0.1})"]
 
+    def residual_parts(self, ctx, spec: Spec):
+        return RANGE_PART
+
     @classmethod
     def example(cls, rng):
         pose = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3) * 0.3), rng.normal(size=3))
@@ -256,6 +261,9 @@ class UwbTagRange(FactorType):
                             "z": np.array([z[row] for _, _, row in pairs], float)},
                            [spec["sigma"]], spec,
                            [max(ctx.state_time(a, ka), ctx.state_time(b, kb)) for ka, kb, _ in pairs])
+
+    def residual_parts(self, ctx, spec: Spec):
+        return RANGE_PART
 
     @classmethod
     def example(cls, rng):
