@@ -75,15 +75,26 @@ def load_session(name: str, folder: Path | None = None) -> Session:
     return Session(name, runs, float(meta["Li"][0]), float(meta["Di"][0]), float(meta["Di"][1]), ticks_rev, side)
 
 
-def write_session(session: Session, folder: Path) -> tuple[Path, Path]:
+def write_session(session: Session, folder: Path, align: int = 1) -> tuple[Path, Path, list[float]]:
     """The session as one recording: `wheels.csv` (t,left,right: cumulative wheel angles, rad) and
     `mocap.tum` (the true poses, planar, z = 0). Runs follow each other one cycle apart, each run's true
     path placed at the previous run's final true pose, so the wheels stand still and the truth does not
-    move between runs: every run's relative motion is kept and nothing links two runs."""
+    move between runs: every run's relative motion is kept and nothing links two runs. `align` > 1: each
+    run starts at a sample index that is a multiple of `align` (the robot stands still, one cycle apart, in
+    between), so states every `align` samples fall on every run's first and last sample. Returns the two files
+    and each run's start time (s)."""
     folder.mkdir(parents=True, exist_ok=True)
-    t, left, right, poses = [], [], [], []
+    t, left, right, poses, starts = [], [], [], [], []
     t0, angle, base = 0.0, np.zeros(2), np.zeros(3)
     for run in session.runs:
+        still = -sum(map(len, t)) % align  # samples standing still before this run
+        if still:
+            t.append(t0 + CYCLE * np.arange(still))
+            left.append(np.full(still, angle[0]))
+            right.append(np.full(still, angle[1]))
+            poses.append(np.tile(base, (still, 1)))
+            t0 = t[-1][-1] + CYCLE
+        starts.append(t0)
         c, s = np.cos(base[2] - run.truth[0, 2]), np.sin(base[2] - run.truth[0, 2])
         rel = run.truth - run.truth[0]
         poses.append(np.column_stack([base[0] + c * rel[:, 0] - s * rel[:, 1], base[1] + s * rel[:, 0] + c * rel[:, 1],
@@ -99,7 +110,7 @@ def write_session(session: Session, folder: Path) -> tuple[Path, Path]:
     half = 0.5 * poses[:, 2]
     np.savetxt(mocap, np.column_stack([t, poses[:, :2], np.zeros((len(t), 3)), np.sin(half), np.cos(half)]),
                fmt="%.10g")
-    return wheels, mocap
+    return wheels, mocap, starts
 
 
 def dead_reckoning(run: Run, axle_length: float, radius_right: float, radius_left: float) -> np.ndarray:
@@ -240,7 +251,7 @@ def graph_calibration(session: Session, settings: dict = GRAPH):
     from fusionkit import run as fusionkit_run
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        wheels, mocap = write_session(session, folder)
+        wheels, mocap, _ = write_session(session, folder)
         path = folder / "config.yaml"
         path.write_text(yaml.safe_dump(graph_config(wheels, mocap, settings), sort_keys=False))
         result = fusionkit_run(path)

@@ -91,10 +91,20 @@ def run_fold(b: Built, index: int, held_units) -> dict:
     out["training"] = {"factors": len(training_ids), "chi2_per_dof": training.chi2_per_dof,
                        "status": "rejected" if training.rejection else "accepted", "rejection": training.rejection,
                        "warnings": training.warnings}
+    out["parameters"] = calibration(b.problem, training)
     out["anchored_by"] = held.anchored
     out["unpredicted"] = held.unpredicted
     out["entries"] = fold_scores(held, b.parts)
     out["seconds"] = time.perf_counter() - tic
+    return out
+
+
+def calibration(problem: Problem, training) -> dict[str, object]:
+    """The fold's estimate of every static variable, by name, as calibration.yaml writes values."""
+    out = {}
+    for k in training.static:
+        vartype = problem.keys.decode(k)[0].vartype
+        out[problem.keys.name_of(k)] = vartype.to_list(vartype.read(training.values, k))
     return out
 
 
