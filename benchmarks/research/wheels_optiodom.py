@@ -80,14 +80,15 @@ def write_session(session: Session, folder: Path, align: int = 1) -> tuple[Path,
     `mocap.tum` (the true poses, planar, z = 0). Runs follow each other one cycle apart, each run's true
     path placed at the previous run's final true pose, so the wheels stand still and the truth does not
     move between runs: every run's relative motion is kept and nothing links two runs. `align` > 1: each
-    run starts at a sample index that is a multiple of `align` (the robot stands still, one cycle apart, in
-    between), so states every `align` samples fall on every run's first and last sample. Returns the two files
-    and each run's start time (s)."""
+    run starts at a sample index that is a multiple of `align`, after the robot stood still (one cycle apart) for
+    more than `align` samples, so states every `align` samples fall on every run's first sample and on its final
+    pose. Returns the two files and each run's start time (s)."""
     folder.mkdir(parents=True, exist_ok=True)
     t, left, right, poses, starts = [], [], [], [], []
     t0, angle, base = 0.0, np.zeros(2), np.zeros(3)
     for run in session.runs:
-        still = -sum(map(len, t)) % align  # samples standing still before this run
+        # standing still before this run: to the next multiple of `align` samples, one state past the last run's end
+        still = (-sum(map(len, t)) % align + align) if t and align > 1 else 0
         if still:
             t.append(t0 + CYCLE * np.arange(still))
             left.append(np.full(still, angle[0]))

@@ -21,6 +21,7 @@ from ..graph.builder import Problem
 
 STATIC = float("-inf")
 BY = ("sample", "segment")  # and "auto", the default
+CUT_TOLERANCE = 1e-6  # s: a state this close before a segment boundary belongs to the segment after it
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,8 @@ def units(problem: Problem, plan: Plan) -> Units:
 
 def _units(problem: Problem, times: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
     """Per record, the units (between consecutive `edges`) of its per-state variables' times."""
-    unit_of_time = dict(zip(times.tolist(), (np.searchsorted(edges, times, side="right") - 1).tolist()))
+    unit = np.searchsorted(edges - CUT_TOLERANCE, times, side="right") - 1
+    unit_of_time = dict(zip(times.tolist(), unit.tolist()))
     out = []
     for r in problem.records:
         ts = {problem.key_time.get(k, STATIC) for k in r.factor.keys()}

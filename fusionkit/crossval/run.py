@@ -50,6 +50,9 @@ def _build(config: RunConfig, plan: Plan, reference: tuple[str, ...]) -> Built:
     entries = [(reg.get("factor_types", spec.type)(), spec) for spec in config.factors]
     roles = Roles({spec.label: tuple(spec[f] for f in ft.stream_fields if spec.get(f)) for ft, spec in entries},
                   set(reference))
+    if not any(roles.predicted(spec.label) for spec in config.factors):
+        raise ConfigError(f"--reference {', '.join(reference)}: nothing to predict; every entry that reads a stream "
+                          "reads a reference (leave out the streams to predict)")
     parts = {spec.label: ft.residual_parts(problem.context, spec) for ft, spec in entries}
     return Built(config, problem, units(problem, plan), roles, parts)
 
