@@ -107,8 +107,8 @@ def summary_lines(config: str, outcome: Outcome) -> list[str]:
     ran = [f for f in outcome.folds if "error" not in f]
     failed = [f for f in outcome.folds if "error" in f]
     rejected = [f for f in ran if f["training"]["status"] == "rejected"]
-    lines = [f"crossval {config}: {outcome.plan.describe()}, {len(outcome.folds)} fold(s), reference "
-             f"{', '.join(outcome.reference)}; {len(ran)} ran" + (f", {len(failed)} failed" if failed else "")
+    lines = [f"crossval {config}: {outcome.plan.describe()}, reference {', '.join(outcome.reference)}: "
+             f"{len(ran)} of {len(outcome.folds)} fits ran" + (f", {len(failed)} failed" if failed else "")
              + f" ({outcome.seconds:.2f} s)"]
     rows = [("held-out prediction", "RMSE", "largest", "model predicts", "fold spread", "e'S^-1e/dim")]
     for label, entry in outcome.pooled.items():
@@ -124,6 +124,13 @@ def summary_lines(config: str, outcome: Outcome) -> list[str]:
         lines.append(f"  training fits: chi2/dof {min(chi2):.3g} .. {max(chi2):.3g}; "
                      + (f"{len(rejected)} rejected by a check (fold(s) {', '.join(str(f['fold']) for f in rejected)})"
                         if rejected else "all accepted"))
+    warned: dict[str, int] = {}
+    for f in ran:
+        for name in dict.fromkeys(w.split(":")[0] for w in f["training"]["warnings"]):
+            warned[name] = warned.get(name, 0) + 1
+    if warned:
+        lines.append("  training warnings (crossval.json has them): " + ", ".join(f"{name} in {n} fold(s)"
+                                                                              for name, n in warned.items()))
     anchored = sorted({a for f in ran for a in f["anchored_by"]})
     if anchored:
         lines.append(f"  the reference measures motion only: each held-out stretch starts at the first measurement of "

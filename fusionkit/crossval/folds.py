@@ -79,7 +79,8 @@ def units(problem: Problem, plan: Plan) -> Units:
 
 def _units(problem: Problem, times: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
     """Per record, the units (between consecutive `edges`) of its per-state variables' times."""
-    unit = np.searchsorted(edges - CUT_TOLERANCE, times, side="right") - 1
+    inner = np.concatenate([edges[:-1] - CUT_TOLERANCE, [np.inf]])  # the last unit ends past the last state
+    unit = np.searchsorted(inner, times, side="right") - 1
     unit_of_time = dict(zip(times.tolist(), unit.tolist()))
     out = []
     for r in problem.records:

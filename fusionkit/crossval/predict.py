@@ -128,13 +128,19 @@ def predict(problem: Problem, training: Training, indices: list[int], roles: Rol
         if not values.exists(k):
             values.insert(k, problem.keys.decode(k)[0].vartype.read(training.values, k))
     marginals = _predictive_marginals(used, training, values)
+    groups: dict[tuple[int, ...], list[FactorRecord]] = {}  # by the per-state variables read: one joint each
     for r in targets:
         keys = list(r.factor.keys())
         if not all(values.exists(k) for k in keys):
             out.unpredicted += 1
             continue
-        dims = [problem.keys.decode(k)[0].vartype.dim for k in keys]
-        out.predictions.append(_prediction(r, dims, values, marginals))
+        groups.setdefault(tuple(sorted(k for k in keys if problem.key_time.get(k) != STATIC)), []).append(r)
+    for group in groups.values():
+        joint = marginals.jointMarginalCovariance(gtsam.KeyVector(list(dict.fromkeys(
+            k for r in group for k in r.factor.keys()))))
+        for r in group:
+            dims = [problem.keys.decode(k)[0].vartype.dim for k in r.factor.keys()]
+            out.predictions.append(_prediction(r, dims, values, joint))
     return out
 
 
@@ -191,15 +197,15 @@ def _predictive_marginals(used: list[FactorRecord], training: Training, values: 
     return gtsam.Marginals(graph, values)
 
 
-def _prediction(record: FactorRecord, dims: list[int], values: gtsam.Values, marginals: gtsam.Marginals) -> Prediction:
+def _prediction(record: FactorRecord, dims: list[int], values: gtsam.Values, joint) -> Prediction:
     """The residual of `record` at the held-out estimate and its covariance S = D (I + A P A^T) D (A: the whitened
-    Jacobian, D: the noise sigmas, P: the joint marginal of its variables, of tangent dimensions `dims`)."""
+    Jacobian, D: the noise sigmas, P: the joint marginal of its variables, of tangent dimensions `dims`, from
+    `joint`, a gtsam.JointMarginal over them and maybe more)."""
     factor = record.factor
     keys = list(factor.keys())
     residual = np.asarray(factor.unwhitenedError(values), float)
     jacobian = factor.linearize(values)
     a, b = jacobian.getA(), jacobian.getb()
-    joint = marginals.jointMarginalCovariance(gtsam.KeyVector(keys))
     offsets = np.concatenate([[0], np.cumsum(dims)])
     p = np.zeros((offsets[-1], offsets[-1]))
     for i, ki in enumerate(keys):
