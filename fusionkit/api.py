@@ -13,6 +13,7 @@ from . import hookimpl, lie, se2
 from .components import (CheckScope, Command, FactorType, Initializer, ResidualPart, RobotModel, Simulator, Source,
                          SourceOutput, Spec, pose_parts)
 from .data.files import read_csv_stream
+from .design import Choice, compared_with_random, d_optimal, information, prior_information
 from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
 from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
@@ -49,7 +50,8 @@ API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 # 1.9: FactorType.separation_hint(spec, parameters) for the identifiability report, parameter_indices,
 #      RobotModel.axis_names (a vector parameter's component names)
 # 1.10: FactorType.residual_parts(ctx, spec) with ResidualPart: the named parts of a residual that
-#      `fusionkit crossval` reports held-out errors of, pose_parts (a pose residual's position and orientation)
+#      `fusionkit crossval` reports held-out errors of, pose_parts (a pose residual's position and orientation);
+#      experiment design: d_optimal, Choice, information, prior_information, compared_with_random
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -60,6 +62,8 @@ __all__ = [
     "robot_description_files", "robot_description_data", "load_robot_description",
     # subcommands of `fusionkit`, and the output folders they (and robot models' outputs) write
     "Command", "check_output_folder", "write_output_folder", "read_csv_stream",
+    # experiment design (D-optimal choice of candidate measurements)
+    "d_optimal", "Choice", "information", "prior_information", "compared_with_random",
     # errors (one located line each)
     "ConfigError", "DataError", "FusionkitError", "PluginError", "SolverError",
     # variables and noise

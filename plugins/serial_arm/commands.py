@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fusionkit.api import (Command, ConfigError, check_output_folder, load_robot_description, read_csv_stream,
-                           write_output_folder)
+from fusionkit.api import (Command, ConfigError, check_output_folder, compared_with_random, load_robot_description,
+                           read_csv_stream, write_output_folder)
 
-from .selection import KINDS, compared_with_random, design_of, select
+from .selection import KINDS, design_of, select
 from .simulator import random_configurations
 from .urdf import urdf_path
 
