@@ -6,6 +6,7 @@ baselines measured in the same process.
     python benchmarks/run_all.py --only factors,isam2
 
 Sections: factors (a), batch (b), isam2 (c), scaled_vo, cable_rigid (ARAS-CAM accuracy and speed),
+cable_design (designed against random static poses for the pulley calibration, 24 seeds),
 cable_sag (sagging cables: thesis Table 5.2, finite-element data, static simulator and calibration speed),
 uwb (bias models, robust kernels, anchor self-calibration, Labyrinth recordings, incremental/batch speed),
 serial_arm (real UR10 leave-one-out against FIGAROH, scipy side by side, 7-DoF speed, drift, simulation table),
@@ -36,7 +37,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_sag", "uwb", "serial_arm", "wheels_real",
+SECTIONS = ("factors", "batch", "isam2", "scaled_vo", "cable_rigid", "cable_design", "cable_sag", "uwb", "serial_arm", "wheels_real",
             "wheels_speed", "wheels_sim", "time_offset", "epuck", "fixed_lag", "sweep", "busy_core")
 
 

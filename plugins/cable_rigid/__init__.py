@@ -3,6 +3,7 @@ pseudo-measurements (models: docs/models/cable_rigid.md)."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
+from .commands import COMMANDS
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .model import CdprModel
@@ -32,3 +33,8 @@ def register_initializers():
 @hookimpl
 def register_robot_descriptions():
     return robot_description_files(__name__)
+
+
+@hookimpl
+def register_commands():
+    return COMMANDS
