@@ -51,7 +51,8 @@ API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      RobotModel.axis_names (a vector parameter's component names)
 # 1.10: FactorType.residual_parts(ctx, spec) with ResidualPart: the named parts of a residual that
 #      `fusionkit crossval` reports held-out errors of, pose_parts (a pose residual's position and orientation);
-#      experiment design: d_optimal, Choice, information, prior_information, compared_with_random
+#      experiment design: d_optimal, Choice, information, prior_information, compared_with_random;
+#      ctx.add_diagnostic(..., identifiability=True): a family's analysis joins the identifiability report
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -73,7 +73,7 @@ def _status(progress):
 def cmd_validate(args) -> int:
     from ..config.loader import load_config
     from ..pipeline import build_problem, identifiability_report, read_sources
-    from ..report.summary import diagnostic_lines
+    from ..report.summary import diagnostic_lines, identifiability_lines
     from ..solve.checks import check_constrained
     from ..solve.factorization import linear_settings
 
@@ -98,13 +98,14 @@ def cmd_validate(args) -> int:
         print(f"  {name}: no value in the description; initial value from {initializer}")
     for key in sorted(problem.fixed_keys):
         print(f"  {problem.keys.name_of(key)}: fixed (held at its value, not estimated)")
-    for line in diagnostic_lines(problem.diagnostics):
+    for line in diagnostic_lines(problem.diagnostics, set(problem.analyses)):
         print(line)
     report = identifiability_report(config, problem, problem.initial, checked.qr, checked.linear)
-    if report is not None and report.lines():
+    found = identifiability_lines(problem, report)
+    if found:
         print("  identifiability at the initial values (what this recording can tell; `run` reports it at the "
               "estimate):")
-        for line in report.lines():
+        for line in found:
             print(f"    {line}")
     for note in problem.notes:
         print(f"  note: {note}")

@@ -95,6 +95,7 @@ class Problem:
     measurement_states: MeasurementStates | None = None  # entries with a time offset (time_offset/)
     context: "BuildContext | None" = None  # what built it: factor types' review() after solving reads it
     held: dict[int, Held] = field(default_factory=dict)  # key -> the axes a factor holds (BuildContext.hold)
+    analyses: list[str] = field(default_factory=list)  # diagnostics about what the data determine (their labels)
     _graph: gtsam.NonlinearFactorGraph | None = None
     _evaluator: GraphEvaluator | None = None
 
@@ -131,6 +132,7 @@ class BuildContext:
         self.key_time: dict[int, float] = {}  # every declared variable -> the time it belongs to
         self.notes: list[str] = list(config.notes)
         self.diagnostics: dict[str, dict] = {}
+        self.analyses: list[str] = []  # labels of the diagnostics about identifiability
         self.plots: dict[str, Callable[[Path], None]] = {}
         self.states: dict[str, StateSet] = {}
         self.fixed_keys: set[int] = set()
@@ -411,7 +413,7 @@ class BuildContext:
     def problem(self) -> Problem:
         return Problem(self.records, self.initial, self.keys, self.states, self.key_time,
                        self.notes + self._unused_notes(), self.diagnostics, self.plots, self.fixed_keys,
-                       self.value_source, self.measurement_states, self, self.held)
+                       self.value_source, self.measurement_states, self, self.held, list(self.analyses))
 
     def require_values(self) -> None:
         """After the initializers: every parameter the description gives no value must have one now."""
@@ -436,10 +438,14 @@ class BuildContext:
         return notes
 
     # --- diagnostics and figures -------------------------------------------------------------
-    def add_diagnostic(self, label: str, report: dict) -> None:
+    def add_diagnostic(self, label: str, report: dict, identifiability: bool = False) -> None:
         """A plugin's finding about the data (e.g. observability), for report.json and `validate`.
-        `report["verdict"]` (a list of sentences), if present, is printed for the user."""
+        `report["verdict"]` (a list of sentences), if present, is printed for the user. `identifiability`
+        (API 1.10): a finding about what the data determine of the parameters (a cable's observability, an arm's
+        identifiable axes): printed, and listed in report.json, with the identifiability report."""
         self.diagnostics[label] = report
+        if identifiability and label not in self.analyses:
+            self.analyses.append(label)
 
     def add_plot(self, name: str, draw: Callable[[Path], None]) -> None:
         """A figure written as plots/<name>.png with the outputs: `draw(path)` saves it."""

@@ -11,7 +11,7 @@ from pathlib import Path
 from .. import __version__
 from ..pipeline import RunResult
 from ..solve.noise_scales import scale_text
-from .summary import parameter_rows
+from .summary import analysis_lines, parameter_rows
 
 STYLE = """body{font-family:system-ui,sans-serif;margin:2em auto;max-width:70em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
@@ -107,12 +107,14 @@ def _identifiability(result: RunResult) -> str:
     """What the data determine: the report's sentences and the parameters' correlation as a heat map (a table
     whose cells are shaded by |rho|, red for positive, blue for negative)."""
     report = result.identifiability
+    analyses = analysis_lines(result.problem)
+    before = f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in analyses)}</ul>" if analyses else ""
     if report is None:
-        return ("<p>Not computed: no parameters (or every axis held), more than 400 components, solver.marginals "
-                "false, or the fixed-lag smoother.</p>")
+        return before + ("<p>Not computed: no parameters (or every axis held), more than 400 components, "
+                         "solver.marginals false, or the fixed-lag smoother.</p>")
     lines = report.lines()
-    text = f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in lines)}</ul>" if lines else (
-        "<p>Every parameter is determined by the data on its own (no |rho| above 0.9, no prior that decides).</p>")
+    text = before + (f"<ul>{''.join(f'<li>{escape(line)}</li>' for line in lines)}</ul>" if lines else (
+        "<p>Every parameter is determined by the data on its own (no |rho| above 0.9, no prior that decides).</p>"))
     if len(report.names) > HEAT_MAP_MAX:
         return text + (f"<p class=small>{len(report.names)} parameter components: the correlation matrix is in "
                        "report.json (identifiability.correlation).</p>")

@@ -90,6 +90,16 @@ def calibration_document(result: RunResult) -> dict:
     return doc
 
 
+def identifiability_document(result: RunResult) -> dict | None:
+    """report.json `identifiability`: the joint covariance's report and, under `analyses`, the labels of the
+    families' own analyses of what the data determine (their reports under `diagnostics`) with their verdicts."""
+    out = result.identifiability.to_json() if result.identifiability else None
+    analyses = {label: result.problem.diagnostics[label].get("verdict", []) for label in result.problem.analyses}
+    if analyses:
+        out = {**(out or {}), "analyses": analyses}
+    return out
+
+
 def report_document(result: RunResult) -> dict:
     problem = result.problem
     counts: dict[str, int] = {}
@@ -119,7 +129,7 @@ def report_document(result: RunResult) -> dict:
         "final_cost": solver["final_cost"],
         "timings_s": result.timings,
         "parameters": params,
-        "identifiability": result.identifiability.to_json() if result.identifiability else None,
+        "identifiability": identifiability_document(result),
         "evaluation": result.evaluation,
         "diagnostics": problem.diagnostics,
         "notes": result.notes,

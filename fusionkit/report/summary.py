@@ -11,6 +11,7 @@ from ..pipeline import ParameterEstimate, RunResult
 from ..graph.builder import Held
 from ..graph.variables import COMPONENTS
 from ..robots.calibration_file import SIGMA_AXES
+from ..solve.identifiability import SHOWN
 from ..solve.noise_scales import scale_text
 
 MAX_SERIES = 8  # time-varying parameters the summary lists, one line each; the others are counted
@@ -173,7 +174,7 @@ def summary_text(result: RunResult) -> str:
         lines.append(f"  {row.label} = {row.text}" + (f"   (error vs truth {err['abs_error'][row.index]:.3g})" if err else ""))
     if series > MAX_SERIES:
         lines.append(f"  ... and {series - MAX_SERIES} more time-varying parameters (report.json has every series)")
-    found = result.identifiability.lines() if result.identifiability else []
+    found = identifiability_lines(result.problem, result.identifiability)
     if found:
         lines.append("  identifiability (what the data determine; report.json identifiability):")
         lines += [f"    {line}" for line in found]
@@ -190,12 +191,32 @@ def summary_text(result: RunResult) -> str:
             c = ev["consistency_percent"]
             within = ", ".join(f"{ax} {c[ax]['1sigma']:.0f}/{c[ax]['2sigma']:.0f}/{c[ax]['3sigma']:.0f}%" for ax in c)
             lines.append(f"    inside 1/2/3 sigma: {within} (ideal 68/95/99.7%)")
-    lines += diagnostic_lines(result.problem.diagnostics)
+    lines += diagnostic_lines(result.problem.diagnostics, set(result.problem.analyses))
     for note in result.notes:
         lines.append(f"  note: {note}")
     return "\n".join(lines)
 
 
-def diagnostic_lines(diagnostics: dict[str, dict]) -> list[str]:
-    """The plain-language verdicts plugins attached to their diagnostics."""
-    return [f"  {label}: {sentence}" for label, d in diagnostics.items() for sentence in d.get("verdict", [])]
+def diagnostic_lines(diagnostics: dict[str, dict], leave_out: set[str] = frozenset()) -> list[str]:
+    """The plain-language verdicts plugins attached to their diagnostics (but those of `leave_out`)."""
+    return [f"  {label}: {sentence}" for label, d in diagnostics.items() if label not in leave_out
+            for sentence in d.get("verdict", [])]
+
+
+def analysis_lines(problem, shown: int | None = None) -> list[str]:
+    """The verdicts of the families' own analyses of what the data determine (`add_diagnostic(...,
+    identifiability=True)`: a cable's observability, an arm's identifiable axes), `label: sentence`; at most
+    `shown` of each analysis, then how many more report.json holds."""
+    out = []
+    for label in problem.analyses:
+        verdict = problem.diagnostics.get(label, {}).get("verdict", [])
+        out += [f"{label}: {sentence}" for sentence in verdict[:shown]]
+        if shown is not None and len(verdict) > shown:
+            out.append(f"{label}: ... and {len(verdict) - shown} more (report.json diagnostics)")
+    return out
+
+
+def identifiability_lines(problem, report) -> list[str]:
+    """The identifiability section on the console: the families' analyses, then what the joint covariance says
+    (`report`), each kind at most SHOWN lines."""
+    return analysis_lines(problem, SHOWN) + (report.lines() if report is not None else [])

@@ -316,5 +316,5 @@ def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
                        "unknown_names": list(r["unknown_names"])})
         lines.append(verdict(int(i), r))
     report = {"cables": cables, "verdict": lines}
-    ctx.add_diagnostic(spec.label, report)
+    ctx.add_diagnostic(spec.label, report, identifiability=True)
     return report

@@ -86,7 +86,7 @@ def identify(ctx, spec: Spec) -> dict | None:
               "combinations": {names[h]: {names[j]: c for j, c in result.combinations[h]} for h in result.held},
               "sigma_from_data": {names[j]: float(result.sigma[j]) for j in range(len(names)) if j not in result.held},
               "condition": result.condition, "verdict": verdict(result, names, info, scale, configurations)}
-    ctx.add_diagnostic(f"{robot}: kinematic identifiability", report)
+    ctx.add_diagnostic(f"{robot}: kinematic identifiability", report, identifiability=True)
     return report
 
 

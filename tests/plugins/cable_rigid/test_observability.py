@@ -189,8 +189,9 @@ def test_validate_and_run_report_the_diagnostic(workspace, rng, capsys, tmp_path
     path = write_run(workspace, rng, [0.5, 0.5, 0.5])
     assert main(["validate", str(path)]) == 0
     out = capsys.readouterr().out
-    lines = [ln for ln in out.splitlines() if ln.startswith(f"  {LABEL}: cable ")]
+    lines = [ln for ln in out.splitlines() if ln.startswith(f"    {LABEL}: cable ")]  # in the identifiability section
     assert len(lines) == 4 and all(": observable (rank 5/5, condition " in ln for ln in lines)
+    assert out.index("  identifiability at the initial values") < out.index(lines[0])
 
     result = fusionkit.run(path)
     diag = result.problem.diagnostics[LABEL]
@@ -205,6 +206,7 @@ def test_validate_and_run_report_the_diagnostic(workspace, rng, capsys, tmp_path
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["diagnostics"][LABEL]["verdict"] == diag["verdict"]
+    assert report["identifiability"]["analyses"][LABEL] == diag["verdict"]  # an instance of the same report
     assert "cable 0: observable (rank 5/5" in capsys.readouterr().out
 
 
@@ -241,5 +243,5 @@ def test_monocular_vo_adds_the_scale_unknown(workspace, rng, capsys, extent, exp
                     {"type": "cable.length", "robot": "ee", "stream": "enc", "sigma": SIGMA}],
         "initializers": [{"type": "pose.dead_reckoning", "robot": "ee", "stream": "vo", "scale": "vo_scale"}]})
     assert main(["validate", str(path)]) == 0
-    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("  factors[2]:cable.length: cable")]
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("    factors[2]:cable.length: cable")]
     assert len(lines) == 4 and all(expect in ln for ln in lines), lines
