@@ -114,13 +114,25 @@ def test_parameter_indices_reads_the_elements_a_group_names():
     assert parameter_indices(names, "cdpr", "pulley_radius") == set()
 
 
-def test_a_serial_arms_placement_components_are_named_by_its_descriptions_axes():
+def test_a_serial_arms_placement_components_are_named_by_its_descriptions_axes_and_its_analysis_joins_the_report():
     """RobotModel.axis_names: `placement[elbow_joint].tz`, not `.c2`; held axes are left out (arm_calibration holds
-    tx, ty, ry of that joint)."""
-    report = estimate(load_config(REPO / "configs" / "arm_calibration.yaml", ["output.plots=false"])).identifiability
+    tx, ty, ry of that joint). The arm's own kinematic identifiability (which axes it holds) is part of the same
+    report: first in its console section (8 sentences, then how many more), in report.json `analyses`."""
+    from fusionkit.report.outputs import report_document
+    from fusionkit.report.summary import summary_text
+    result = estimate(load_config(REPO / "configs" / "arm_calibration.yaml", ["output.plots=false"]))
+    report = result.identifiability
     elbow = [n for n in report.names if n.startswith("arm/placement[elbow_joint].")]
     assert elbow == ["arm/placement[elbow_joint].tz", "arm/placement[elbow_joint].rx", "arm/placement[elbow_joint].rz"]
     assert not any(n.endswith((".c0", ".c1", ".c2")) for n in report.names)
+    label = "arm: kinematic identifiability"
+    verdict = result.problem.diagnostics[label]["verdict"]
+    assert report_document(result)["identifiability"]["analyses"] == {label: verdict} and len(verdict) == 25
+    text = summary_text(result).splitlines()
+    section = text[text.index("  identifiability (what the data determine; report.json identifiability):") + 1:]
+    assert section[0] == f"    {label}: {verdict[0]}"
+    assert section[8] == f"    {label}: ... and 17 more (report.json diagnostics)"
+    assert not any(line.startswith(f"  {label}:") for line in text)  # not again among the other diagnostics
 
 
 def test_validate_reports_what_the_recording_can_tell_before_solving(tmp_path, capsys):
