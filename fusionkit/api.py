@@ -57,7 +57,8 @@ API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 __all__ = [
     "API_VERSION", "hookimpl",
     # components a plugin provides, and what they are given
-    "CheckScope", "FactorType", "ResidualPart", "pose_parts", "Initializer", "RobotModel", "Simulator", "Source", "SourceOutput", "Spec",
+    "CheckScope", "FactorType", "ResidualPart", "pose_parts", "Initializer", "RobotModel", "Simulator", "Source",
+    "SourceOutput", "Spec",
     "RobotDescription", "Parameter", "Sensor",
     # robot descriptions shipped as package data, by name; a description by name or file, checked
     "robot_description_files", "robot_description_data", "load_robot_description",

@@ -7,8 +7,8 @@ positions drawn in the workspace (the seed's own); N of them chosen D-optimally 
 before any data), against the first N, 2N, 3N of the candidates in random order. Each pose is measured as the
 design assumes: motion capture with MOCAP sigmas (body-frame rotation and translation), the rigid cable lengths
 plus offsets with ENCODER sigma. fusionkit calibrates from them (`pose.absolute` + `cable.length`, from the
-description's nominal pulleys and offsets); the errors of the calibrated pulleys (RMS over their 3n axes) and offsets against
-the truth, and the sigmas the calibration reports against those the design predicted.
+description's nominal pulleys and offsets); the errors of the calibrated pulleys (RMS over their 3n axes) and
+offsets against the truth, and the sigmas the calibration reports against those the design predicted.
 """
 
 from __future__ import annotations

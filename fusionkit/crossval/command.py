@@ -114,8 +114,8 @@ def summary_lines(config: str, outcome: Outcome) -> list[str]:
     for label, entry in outcome.pooled.items():
         for name, p in entry["parts"].items():
             chi = f"{entry['chi2_per_dim']:.2f}" if entry["chi2_per_dim"] is not None else "-"
-            rows.append((f"{label} {name} (n = {p['count']})", _shown(p["rmse"], p["unit"]), _shown(p["max"], p["unit"]),
-                         _shown(p["predicted_rmse"], p["unit"]), _shown(p["fold_std"], p["unit"]), chi))
+            rows.append((f"{label} {name} (n = {p['count']})",
+                         *(_shown(p[k], p["unit"]) for k in ("rmse", "max", "predicted_rmse", "fold_std")), chi))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines += ["  " + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
               for r in rows]
