@@ -67,6 +67,7 @@ def test_mis_stated_tracker_noise_fails_the_predictive_check(arm, told, says):
     assert np.sqrt(3) * 1e-4 * 0.8 < entry["parts"]["position"]["rmse"] < np.sqrt(3) * 1e-4 * 1.6
 
 
+@pytest.mark.slow
 def test_two_local_workers_give_the_folds_of_one(arm):
     one = crossval(str(arm), [], Plan("auto", folds=4), ["joints"], workers=1)
     two = crossval(str(arm), [], Plan("auto", folds=4), ["joints"], workers=2)

@@ -200,6 +200,7 @@ def test_marginal_covariances_of_parameters(runs, name):
     assert all(consistency[axis]["3sigma"] > 90 for axis in "xyz")
 
 
+@pytest.mark.slow
 def test_scale_sigma_is_honest_over_seeds():
     """Over 20 simulations the scale error is inside 2 sigma about 95% of the time (measured over
     100 seeds: 96%, z standard deviation 1.00); an over- or under-confident covariance fails."""

@@ -81,6 +81,7 @@ def test_state_covariances_must_be_true_or_false(simulated, tmp_path):
     assert str(err.value) == f"{config}:{line}: output.state_covariances: got 'yes'; expected true or false"
 
 
+@pytest.mark.slow
 def test_error_vs_time_plot_is_written_when_truth_exists_and_not_without(simulated, tmp_path, capsys):
     out = tmp_path / "with_truth"
     assert main(["run", str(simulated / "config.yaml"), "--out", str(out)]) == 0

@@ -36,6 +36,7 @@ def test_drifting_bias_time_varying_model_beats_constant_and_none_within_10_cm(m
     assert varying["position_m"] < 0.1 and varying["bias_m"] < 0.08
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("noise", [{"uwb.range": 0.5}, {"uwb.range": 2.0},
                                    {"parameter.random_walk": 0.5, "odometry.diff_drive": 2.0}],
                          ids=["range_x0.5", "range_x2", "drift_x0.5_odometry_x2"])
