@@ -23,6 +23,7 @@ from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
 from .eval.timebase import check_truth_clock
 from .data.association import nearest
+from .data.recordings import bridging, gaps
 from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions, position_consistency,
                               trajectory_errors)
 from .graph.builder import BuildContext, Problem, state_times
@@ -140,10 +141,24 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
         reg.get("initializers", spec.type)().initialize(ctx, spec)
     ctx.measurement_states.finish()
     ctx.require_values()
+    separate_recordings(ctx, streams)
     for spec in config.factors:
         _stage(progress, f"diagnosing {spec.label}")
         reg.get("factor_types", spec.type)().diagnose(ctx, spec)
     return ctx.problem()
+
+
+def separate_recordings(ctx: BuildContext, streams: dict[str, Stream]) -> None:
+    """Leave out the factors that link states across the gap between two recordings (data/recordings.py)."""
+    between = gaps(streams)
+    if not between:
+        return
+    crossing = bridging(ctx.records, ctx.key_time, between)
+    if any(crossing):
+        ctx.records[:] = [r for r, c in zip(ctx.records, crossing) if not c]
+        where = ", ".join(f"{start:g}" for start in sorted({round(start, 6) for _, start in between}))
+        ctx.notes.append(f"{sum(crossing)} factor(s) that would link the states of two recordings (starting at t = "
+                         f"{where} s) were left out: the recordings share the calibration, not their states")
 
 
 def _marginal_keys(problem: Problem, state_families: set[tuple[str, str]] | bool) -> set[int]:

@@ -143,6 +143,8 @@ def expected(schema: Any) -> str:
         return "a value"
     if "enum" in schema:
         return "one of: " + ", ".join(map(str, schema["enum"]))
+    if "oneOf" in schema and "type" not in schema:  # e.g. a file or a list of files
+        return " or ".join(expected(sub) for sub in schema["oneOf"])
     types = schema.get("type")
     if types is None:
         return "a value"

@@ -47,9 +47,10 @@ class CrossVal(Command):
                          "out once")
         how.add_argument("--split", type=float, metavar="FRACTION", help="train on the first FRACTION (0..1) in "
                          "time, predict the rest")
-        parser.add_argument("--by", choices=BY, help="what is held out: samples (a static configuration, a frame) "
-                            "or segments of time (default: segments when a factor links consecutive states, "
-                            "else samples)")
+        parser.add_argument("--by", choices=BY, help="what is held out: samples (a static configuration, a frame), "
+                            "segments of time, or files (the recordings of a source given several) (default: files "
+                            "when there are several recordings, else segments when a factor links consecutive "
+                            "states, else samples)")
         parser.add_argument("--cuts", type=_cuts, metavar="T1,T2,...", help="segment boundaries (s), e.g. where "
                             "recordings laid end to end meet; each segment is one fold")
         parser.add_argument("--reference", action="append", metavar="STREAM", help="stream the held-out states "
@@ -95,8 +96,11 @@ class CrossVal(Command):
             raise ConfigError(f"--folds {args.folds}: expected 2 or more")
         if args.split is not None and not 0 < args.split < 1:
             raise ConfigError(f"--split {args.split}: expected a fraction between 0 and 1")
-        if args.cuts and args.by == "sample":
+        if args.cuts and args.by in ("sample", "file"):
             raise ConfigError("--cuts: segments only (--by segment)")
+        if args.by == "file" and args.split is not None:
+            raise ConfigError("--split and --by file: a split is in time (--by segment); by file, each recording is "
+                              "held out once (--leave-one-out)")
         if args.cuts and args.split is not None:
             raise ConfigError("--cuts and --split: give one of them (a split is one cut)")
         by = "segment" if args.cuts else args.by or "auto"

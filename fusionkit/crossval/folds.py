@@ -17,18 +17,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..data.recordings import gaps
 from ..graph.builder import Problem
 
 STATIC = float("-inf")
-BY = ("sample", "segment")  # and "auto", the default
+BY = ("sample", "segment", "file")  # and "auto", the default
 CUT_TOLERANCE = 1e-6  # s: a state this close before a segment boundary belongs to the segment after it
 
 
 @dataclass(frozen=True)
 class Plan:
-    """How to cut: `by` sample, segment or auto (segments when a factor links two state times, else samples);
-    `folds` K, or `leave_one_out`, or `split` (the training share, the first part in time); `cuts`: segment
-    boundaries (s) instead of K equal blocks."""
+    """How to cut: `by` sample, segment, file or auto (files when a source reads several recordings, else segments
+    when a factor links two state times, else samples); `folds` K, or `leave_one_out`, or `split` (the training
+    share, the first part in time); `cuts`: segment boundaries (s) instead of K equal blocks."""
 
     by: str
     folds: int | None = None
@@ -37,6 +38,8 @@ class Plan:
     cuts: tuple[float, ...] = ()
 
     def describe(self) -> str:
+        if self.by == "file":
+            return "leave one recording (file) out"
         if self.split is not None:
             return f"train on the first {self.split:.0%} ({self.by}s), predict the rest"
         if self.leave_one_out:
@@ -64,6 +67,13 @@ def units(problem: Problem, plan: Plan) -> Units:
     times = state_times(problem)
     if len(times) < 2:
         raise ConfigError(f"crossval needs at least two state times to hold some out; the problem has {len(times)}")
+    if plan.by == "file" or (plan.by == "auto" and plan.split is None):
+        cuts = recording_cuts(problem)
+        if cuts:
+            plan = dataclasses.replace(plan, by="file", cuts=cuts)
+        elif plan.by == "file":
+            raise ConfigError("--by file: every source reads one file; give the recordings as a list (`path: [a.csv, "
+                              "b.csv]`), or hold out stretches of time (--by segment)")
     samples = _units(problem, times, np.concatenate([times, [np.inf]]))
     if plan.by == "auto":
         plan = dataclasses.replace(plan, by="segment" if any(len(u) > 1 for u in samples) else "sample")
@@ -75,6 +85,18 @@ def units(problem: Problem, plan: Plan) -> Units:
     edges = _segment_edges(times, plan)
     labels = [f"t = {a:g} .. {b:g} s" for a, b in zip(edges[:-1], edges[1:])]
     return Units(plan, labels, np.column_stack([edges[:-1], edges[1:]]), _units(problem, times, edges))
+
+
+def recording_cuts(problem: Problem) -> tuple[float, ...]:
+    """Where the recordings of a source given several files meet: the middle of each gap between them (the gaps
+    of all such streams, overlapping ones merged)."""
+    merged: list[list[float]] = []
+    for end, start in gaps(problem.context.streams) if problem.context is not None else []:
+        if merged and end <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], start)
+        else:
+            merged.append([end, start])
+    return tuple(0.5 * (end + start) for end, start in merged)
 
 
 def _units(problem: Problem, times: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
@@ -114,7 +136,7 @@ def folds(plan: Plan, count: int) -> list[np.ndarray]:
             raise ConfigError(f"--split {plan.split}: leaves no {'held-out' if keep >= count else 'training'} sample "
                               f"of {count}")
         return [np.arange(keep, count)]
-    if plan.leave_one_out or plan.by == "segment":  # segments: each block is one fold
+    if plan.leave_one_out or plan.by in ("segment", "file"):  # segments, recordings: each is one fold
         return [np.array([u]) for u in range(count)]
     if not 2 <= plan.folds <= count:
         raise ConfigError(f"--folds {plan.folds}: expected 2 .. {count} (the problem has {count} samples)")

@@ -9,6 +9,7 @@ import numpy as np
 from .. import hookimpl
 from ..components import SourceOutput, Source, Spec
 from .files import read_csv_header, read_csv_stream, read_tum
+from .recordings import concatenated
 from .stream import POSE_COLUMNS
 
 NAME = {"type": "string", "pattern": "^[A-Za-z_][A-Za-z0-9_./-]*$"}
@@ -21,42 +22,60 @@ def resolve(base_dir: Path, path: str) -> Path:
 
 def existing_file(spec: Spec, base_dir: Path, what: str = "file") -> Path:
     """The entry's `path`, resolved; a located error if it is missing or a folder."""
-    path = resolve(base_dir, spec["path"])
-    if path.is_dir():
-        raise spec.error("path", f"{path} is a folder; expected a {what}")
-    if not path.is_file():
-        raise spec.error("path", f"{what} not found: {path}")
-    return path
+    return existing_files(spec, base_dir, what)[0]
+
+
+def existing_files(spec: Spec, base_dir: Path, what: str = "file") -> list[Path]:
+    """The entry's `path`, one file or a list of them (several recordings), resolved; a located error for one
+    that is missing or a folder."""
+    given = spec["path"]
+    out = []
+    for i, text in enumerate(given if isinstance(given, list) else [given]):
+        key = ("path", i) if isinstance(given, list) else "path"
+        path = resolve(base_dir, text)
+        if path.is_dir():
+            raise spec.error(key, f"{path} is a folder; expected a {what}")
+        if not path.is_file():
+            raise spec.error(key, f"{what} not found: {path}")
+        out.append(path)
+    return out
+
+
+PATHS = {"oneOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}, "minItems": 1}],
+         "description": "a file, or a list of files: recordings of the stream, one after the other in time"}
 
 
 class CsvSource(Source):
     name = "csv"
-    summary = "stream CSV: header row, first column t (s), then named numeric columns"
-    schema = {"type": "object", "properties": {"name": NAME, "path": {"type": "string"},
+    summary = "stream CSV: header row, first column t (s), then named numeric columns (several files: recordings)"
+    schema = {"type": "object", "properties": {"name": NAME, "path": PATHS,
                                                "columns": {"type": "array", "items": {"type": "string"}}},
               "required": ["name", "path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
-        path = existing_file(spec, base_dir)
+        path = existing_files(spec, base_dir)[0]
         return {spec["name"]: tuple(spec.get("columns") or read_csv_header(path))}
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
-        stream = read_csv_stream(resolve(base_dir, spec["path"]), spec["name"], tuple(spec.get("columns", ())))
+        files = existing_files(spec, base_dir)
+        parts = [read_csv_stream(f, spec["name"], tuple(spec.get("columns", ()))) for f in files]
+        stream = concatenated(parts, files)
         return SourceOutput({stream.name: stream})
 
 
 class TumSource(Source):
     name = "tum"
-    summary = "TUM trajectory: t x y z qx qy qz qw per line (poses)"
-    schema = {"type": "object", "properties": {"name": NAME, "path": {"type": "string"}},
+    summary = "TUM trajectory: t x y z qx qy qz qw per line (poses; several files: recordings)"
+    schema = {"type": "object", "properties": {"name": NAME, "path": PATHS},
               "required": ["name", "path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
-        existing_file(spec, base_dir)
+        existing_files(spec, base_dir)
         return {spec["name"]: POSE_COLUMNS}
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
-        stream = read_tum(resolve(base_dir, spec["path"]), spec["name"])
+        files = existing_files(spec, base_dir)
+        stream = concatenated([read_tum(f, spec["name"]) for f in files], files)
         return SourceOutput({stream.name: stream})
 
 

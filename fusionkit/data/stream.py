@@ -25,6 +25,8 @@ class Stream:
     values: np.ndarray
     origin: str = ""
     notes: list[str] = field(default_factory=list, compare=False)  # what reading it corrected, for the report
+    # several recordings laid end to end (a source given several files): each one's (origin, first t, last t)
+    parts: tuple[tuple[str, float, float], ...] = field(default=(), compare=False)
     _poses: list | None = field(default=None, init=False, repr=False, compare=False)  # poses(), made once
 
     def __post_init__(self) -> None:

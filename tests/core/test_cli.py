@@ -109,7 +109,7 @@ def test_plugins_json_lists_sources_with_summary_and_schema_and_every_builtin_na
     listing = json.loads(capsys.readouterr().out)
     sources = {item["name"]: item for item in listing["fusionkit.data.builtin_sources"]["sources"]}
     assert set(sources) >= {"csv", "tum", "simulate"}
-    assert sources["tum"]["summary"] == "TUM trajectory: t x y z qx qy qz qw per line (poses)"
+    assert sources["tum"]["summary"] == "TUM trajectory: t x y z qx qy qz qw per line (poses; several files: recordings)"
     assert sources["csv"]["schema"]["required"] == ["name", "path"]
     names = {item["name"] for provided in listing.values() for items in provided.values() for item in items}
     assert {"generic", "pose.absolute", "pose.scaled_relative", "pose.scale_from_absolute",

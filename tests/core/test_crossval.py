@@ -96,6 +96,8 @@ def test_the_command_prints_the_table_and_writes_crossval_json_and_the_plot(arm,
     (["--folds", "1"], "--folds 1: expected 2 or more"),
     (["--folds", "31"], "--folds 31: expected 2 .. 30"),
     (["--folds", "3", "--by", "sample", "--cuts", "3"], "--cuts: segments only"),
+    (["--leave-one-out", "--by", "file"], "--by file: every source reads one file"),
+    (["--split", "0.5", "--by", "file"], "--split and --by file"),
 ])
 def test_bad_crossval_arguments_are_one_line_and_exit_2(arm, tmp_path, capsys, args, says):
     assert main(["crossval", str(arm), "--out", str(tmp_path / "cv"), *args]) == 2
