@@ -223,6 +223,8 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
 def _unit(family, axis: str, declared) -> str:
     if family.vartype.name in ("pose3", "pose2", "rot3"):
         return "rad" if axis.startswith("r") else "m"
+    if family.vartype.name == "imu_bias":  # accelerometer ax..az, gyroscope gx..gz
+        return "m/s^2" if axis.startswith("a") else "rad/s"
     return declared.unit if declared is not None and declared.unit else ""
 
 
