@@ -77,7 +77,7 @@ class CrossVal(Command):
         plan = self._plan(args)
         with ProcessPoolExecutor(1) as painter:  # imports matplotlib (a second) while the folds run
             painter.submit(_import_matplotlib)
-            outcome = crossval(str(Path(args.config)), args.set, plan, reference, args.backend, args.workers)
+            outcome = crossval(str(Path(args.config).resolve()), args.set, plan, reference, args.backend, args.workers)
             ran = [f for f in outcome.folds if "error" not in f]
             if not ran:
                 raise ConfigError(f"every fold failed; the first: {outcome.folds[0]['error']}")

@@ -77,6 +77,17 @@ def test_two_local_workers_give_the_folds_of_one(arm):
             b["entries"][TOOL]["parts"]["position"]["rmse"], rel=1e-9)
 
 
+@pytest.mark.slow
+def test_the_ray_backend_gives_the_folds_of_one_process(arm):
+    """With Ray installed (`pip install 'fusionkit[scale]'`): a local Ray instance runs each fold as a task."""
+    pytest.importorskip("ray", reason="Ray is an optional extra (fusionkit[scale])")
+    one = crossval(str(arm), [], Plan("auto", folds=3), ["joints"])
+    ray = crossval(str(arm), [], Plan("auto", folds=3), ["joints"], backend="ray")
+    for a, b in zip(one.folds, ray.folds):
+        assert a["entries"][TOOL]["parts"]["position"]["rmse"] == pytest.approx(
+            b["entries"][TOOL]["parts"]["position"]["rmse"], rel=1e-9)
+
+
 def test_the_command_prints_the_table_and_writes_crossval_json_and_the_plot(arm, tmp_path, capsys):
     out = tmp_path / "cv"
     assert main(["crossval", str(arm), "--folds", "3", "--out", str(out)]) == 0
