@@ -32,12 +32,13 @@ class Built:
     parts: dict[str, list[ResidualPart]]
 
 
-_BUILT: dict[tuple, Built] = {}  # per process: forked workers inherit the parent's
+_BUILT: dict[tuple, Built] = {}  # the last graph built in this process: forked workers inherit the parent's
 
 
 def built(config_path: str, overrides: tuple[str, ...], plan: Plan, reference: tuple[str, ...]) -> Built:
     key = (config_path, overrides, plan, reference)
     if key not in _BUILT:
+        _BUILT.clear()  # one at a time: a process that cross-validates many configs keeps none of the others
         _BUILT[key] = _build(load_config(config_path, list(overrides)), plan, reference)
     return _BUILT[key]
 
@@ -113,7 +114,9 @@ def calibration(problem: Problem, training) -> dict[str, object]:
 
 @dataclass
 class Outcome:
-    built: Built
+    """The folds' results (run_fold's dicts, in fold order), pooled per entry (scores.pooled), and the plan with
+    its `by` resolved."""
+
     plan: Plan
     reference: tuple[str, ...]
     folds: list[dict]
@@ -132,4 +135,4 @@ def crossval(config_path: str, overrides: list[str], plan: Plan, reference: list
     tasks = [(*key, list(range(count))[i::shares]) for i in range(shares)]
     results = [fold for share in run_tasks(run_folds, tasks, backend, workers) for fold in share]
     results.sort(key=lambda f: f["fold"])
-    return Outcome(b, b.units.plan, tuple(reference), results, pooled(results), time.perf_counter() - tic)
+    return Outcome(b.units.plan, tuple(reference), results, pooled(results), time.perf_counter() - tic)
