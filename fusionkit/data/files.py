@@ -108,15 +108,18 @@ def read_csv_header(path: Path) -> tuple[str, ...]:
     raise DataError(f"{path}: empty file; expected a header row starting with 't'")
 
 
-def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = ()) -> Stream:
-    """CSV with a header row whose first column is `t` (seconds); every cell numeric."""
+def read_csv_stream(path: Path, name: str, required: tuple[str, ...] = (), indexed: bool = False) -> Stream:
+    """CSV with a header row whose first column is `t` (seconds); every cell numeric. `indexed`: a table whose
+    rows need no time may leave `t` out, and its rows are then numbered 0, 1, ... as their t."""
     raw = _read_bytes(path)
     plain = plain_csv(raw)
     if plain is None:
-        header, data, lines = _csv_rows(path, _decode(path, raw), required)
+        header, data, lines = _csv_rows(path, _decode(path, raw), required, indexed)
     else:
         header, data, first = plain
         lines = first + np.arange(len(data) + 1)
+        if indexed and header[0] != "t":
+            header, data = ["t", *header], np.column_stack([np.arange(len(data), dtype=float), data])
         _check_columns(path, first, header, required)
     check_samples(data[:, 0], data[:, 1:], str(path), lines=np.asarray(lines[1:]))
     check_seconds(f"{path}:{lines[1]}", data[:, 0])
@@ -138,9 +141,10 @@ def _check_columns(path: Path, line: int, header: list[str], required: tuple[str
                         f"{','.join(header)}, expected at least t,{','.join(required)}")
 
 
-def _csv_rows(path: Path, text: str, required: tuple[str, ...]) -> tuple[list[str], np.ndarray, list[int]]:
+def _csv_rows(path: Path, text: str, required: tuple[str, ...],
+              indexed: bool = False) -> tuple[list[str], np.ndarray, list[int]]:
     """(header, rows, line numbers of the header and the rows) read with the csv module, row by row,
-    with a located error for a bad header or row."""
+    with a located error for a bad header or row; `indexed`: without a `t` column, the row numbers as t."""
     reader = csv.reader(io.StringIO(text))
     rows, lines = [], []  # data rows and their line numbers (comments and blank lines are skipped)
     for row in reader:
@@ -150,12 +154,17 @@ def _csv_rows(path: Path, text: str, required: tuple[str, ...]) -> tuple[list[st
     if not rows:
         raise DataError(f"{path}: empty file; expected a header row starting with 't'")
     header = [h.strip() for h in rows[0]]
+    index = indexed and header[0] != "t"
+    if index:
+        rows = [rows[0]] + [[str(i), *row] for i, row in enumerate(rows[1:])]
+        header = ["t", *header]
     _check_columns(path, lines[0], header, required)
     width = len(header)
     data = np.empty((len(rows) - 1, width))
     for i, (row, line) in enumerate(zip(rows[1:], lines[1:])):
         if len(row) != width:
-            raise DataError(f"{path}:{line}: row has {len(row)} columns; header has {width} ({','.join(header)})")
+            raise DataError(f"{path}:{line}: row has {len(row) - index} columns; header has {width - index} "
+                            f"({','.join(header[index:])})")
         try:
             data[i] = [float(c) for c in row]
         except ValueError:

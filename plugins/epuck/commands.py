@@ -32,8 +32,9 @@ class FitIr(Command):
                "readings at known distances; writes the sensors' models for a robot description")
 
     def add_arguments(self, parser) -> None:
-        parser.add_argument("readings", help="CSV: t, distance (m, sensor to wall along its axis), sensor (index "
-                            "0..), reading (counts); one row per reading, many readings per distance")
+        parser.add_argument("readings", help="CSV: distance (m, sensor to wall along its axis, 0: touching), sensor "
+                            "(index 0..), reading (counts); one row per reading, several per distance; a first "
+                            "column t is allowed, not needed")
         parser.add_argument("--out", required=True, help="output folder: ir_models.yaml, fit.json; replaced only "
                             "when it is new, empty or an earlier fusionkit output")
         parser.add_argument("--unit", type=float, default=0.01, metavar="M",
@@ -46,12 +47,13 @@ class FitIr(Command):
             raise ConfigError(f"--unit {args.unit}: expected a positive length in m")
         path = Path(args.readings)
         check_output_folder(Path(args.out), [path])
-        data = read_csv_stream(path, "readings", ("distance", "sensor", "reading"))
+        data = read_csv_stream(path, "readings", ("distance", "sensor", "reading"), indexed=True)
         distance, sensor, reading = (data.column(c) for c in ("distance", "sensor", "reading"))
-        if np.any(distance <= 0) or np.any(sensor != np.round(sensor)) or np.any(sensor < 0):
-            raise DataError(f"{path}: distance must be > 0 (m) and sensor a non-negative integer on every row")
+        if np.any(distance < 0) or np.any(sensor != np.round(sensor)) or np.any(sensor < 0):
+            raise DataError(f"{path}: distance must be >= 0 (m) and sensor a non-negative integer on every row")
         models, report = {}, {"unit_m": args.unit, "sensors": {}}
-        lines = [f"epuck-fit-ir: {path.name}: {len(reading)} readings, x unit {args.unit:g} m"]
+        lines = [f"epuck-fit-ir: {path.name}: {len(reading)} readings at {distance.min():g} .. {distance.max():g} m "
+                 f"(ir_range), x unit {args.unit:g} m"]
         for s in np.unique(sensor).astype(int):
             rows = sensor == s
             try:
@@ -67,9 +69,12 @@ class FitIr(Command):
                          f"{fit.mean_fit.chi2_per_dof:.2f}; variance {len(fit.var_fit.terms)} term(s), chi2/dof "
                          f"{fit.var_fit.chi2_per_dof:.2f}; worst residual {np.abs(fit.mean_fit.residual_sigmas).max():.1f}"
                          f" / {np.abs(fit.var_fit.residual_sigmas).max():.1f} sigma")
-        text = ("# IR sensor models fitted by fusionkit epuck-fit-ir: merge into the `sensors:` of an epuck "
-                f"description (with ir_distance_unit: {args.unit:g})\n") + yaml.safe_dump({"sensors": models},
-                                                                                        sort_keys=False)
+        fitted = [float(distance.min()), float(distance.max())]
+        report["ir_range"] = fitted
+        text = ("# IR sensor models fitted by fusionkit epuck-fit-ir: merge into an epuck description -- the models "
+                "into its `sensors:`, and ir_range, the distances (m) they were fitted on (outside them readings are "
+                "censored)\n") + yaml.safe_dump({"ir_distance_unit": args.unit, "ir_range": fitted,
+                                                  "sensors": models}, sort_keys=False)
         out = write_output_folder(Path(args.out), self.name, {"ir_models.yaml": text,
                                                               "fit.json": json.dumps(report, indent=2)}, [path])
         print("\n".join(lines + [f"  outputs: {out}/ (ir_models.yaml, fit.json)"]))

@@ -108,11 +108,17 @@ class _Problem:
         return np.array([p1, np.log(max(1.0 / c ** 2 - p1 ** 2 / (4.0 * LOG_A_ROOM), 1e-12))])
 
     def solve(self, q0: np.ndarray):
-        """The search from q0: a fit, or None (not representable or admissible)."""
+        """The search from q0: a fit, or None (not representable or admissible, or a start or step where the
+        linear algebra fails: one diverging start must not stop the others)."""
         from scipy.optimize import least_squares
-        with np.errstate(over="ignore", invalid="ignore"):
-            sol = least_squares(self.residual, q0, jac=self.jacobian, method="lm", max_nfev=50 * len(q0))
-            return self.admit(*self.slopes(sol.x), self.amplitudes(sol.x))
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            try:
+                if not np.all(np.isfinite(self.residual(q0))):
+                    return None
+                sol = least_squares(self.residual, q0, jac=self.jacobian, method="lm", max_nfev=50 * len(q0))
+                return self.admit(*self.slopes(sol.x), self.amplitudes(sol.x))
+            except (np.linalg.LinAlgError, ValueError):
+                return None
 
     def free_residual(self, v: np.ndarray) -> np.ndarray:
         v = v.reshape(-1, 3)
@@ -129,9 +135,12 @@ class _Problem:
         n = len(A)
         lo, hi = np.tile([-np.inf, -np.inf, -np.inf], n), np.tile([np.inf, np.inf, -1e-9], n)
         start = np.column_stack([A, p1, np.minimum(p2, -2e-9)]).ravel()
-        with np.errstate(over="ignore", invalid="ignore"):
-            sol = least_squares(self.free_residual, start, jac=self.free_jacobian, bounds=(lo, hi), method="trf",
-                                x_scale="jac", max_nfev=200)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            try:
+                sol = least_squares(self.free_residual, start, jac=self.free_jacobian, bounds=(lo, hi),
+                                    method="trf", x_scale="jac", max_nfev=200)
+            except (np.linalg.LinAlgError, ValueError):
+                return fit
             v = sol.x.reshape(-1, 3)
             better = self.admit(v[:, 1], v[:, 2], v[:, 0])
         return better if better is not None and better[0] < chi2 else fit

@@ -94,7 +94,8 @@ class EpuckModel(RobotModel):
                "model of its mean reading and variance, velocity-model noise alpha1-4 (5-6)")
     schema = {"type": "object",
               "properties": {"wheel_radius": POSITIVE, "axle_length": POSITIVE,
-                             "ir_range": {"type": "array", "items": POSITIVE, "minItems": 2, "maxItems": 2},
+                             "ir_range": {"type": "array", "items": {"type": "number", "minimum": 0},
+                                          "minItems": 2, "maxItems": 2},
                              "ir_distance_unit": POSITIVE,
                              "velocity_noise": {"type": "object",
                                                 "properties": {"alpha": {"type": "array",

@@ -80,3 +80,48 @@ def test_fit_commands_write_a_description_fragment_and_refuse_a_bad_kind_in_one_
     assert main(["epuck-fit-ir", str(ir), "--out", str(tmp_path / "ir"), "--max-terms", "1"]) == 0
     models = yaml.safe_load((tmp_path / "ir" / "ir_models.yaml").read_text())["sensors"]
     assert list(models) == ["ir6"] and set(models["ir6"]) == {"mean", "variance"}
+
+
+@pytest.mark.slow
+def test_fit_ir_reads_readings_without_time_and_touching_the_wall_and_records_the_range(tmp_path, capsys):
+    """A real robot backing away from a wall logs no timestamps, and its first readings touch the wall (distance 0):
+    both are accepted, and the written fragment carries ir_range, the distances fitted on, so a description that
+    takes it reads the models where they hold."""
+    from fusionkit_plugins.epuck.model import ir_layout_from_data
+    rng = np.random.default_rng(4)
+    distances = np.concatenate([[0.0], DISTANCES])
+    bank = Bank([IR6_MEAN], [IR6_VAR], 0.01, 0.005, 0.07)
+    d = np.repeat(distances, 20)
+    ev = bank.evaluate(np.maximum(d, 0.005), np.zeros(len(d), int))
+    z = ev.mean + np.sqrt(ev.var) * rng.standard_normal(len(d))
+    ir = tmp_path / "backing_away.csv"
+    ir.write_text("distance,sensor,reading\n" + "".join(f"{a:.17g},0,{b:.17g}\n" for a, b in zip(d, z)))
+    assert main(["epuck-fit-ir", str(ir), "--out", str(tmp_path / "ir")]) == 0
+    assert "at 0 .. 0.07 m (ir_range)" in capsys.readouterr().out
+    fragment = yaml.safe_load((tmp_path / "ir" / "ir_models.yaml").read_text())
+    assert fragment["ir_range"] == [0.0, 0.07] and fragment["ir_distance_unit"] == 0.01
+    sensor = {"type": "ir_proximity", "frame": "base", **fragment["sensors"]["ir0"]}
+    layout = ir_layout_from_data({"ir_range": fragment["ir_range"], "ir_distance_unit": 0.01,
+                                  "sensors": {"ir0": sensor}})
+    fitted = layout.bank.evaluate(DISTANCES, np.zeros(10, int)).mean
+    truth = bank.evaluate(DISTANCES, np.zeros(10, int)).mean
+    assert np.max(np.abs(fitted - truth) / truth) < 0.05
+
+
+def test_a_start_where_the_linear_algebra_fails_does_not_stop_the_fit(monkeypatch):
+    """One diverging start (LAPACK's `SVD did not converge` on a real sensor) is skipped: the fit goes on with the
+    other starts and finds the same model."""
+    import scipy.optimize
+    d, z, _ = readings(IR6_MEAN, IR6_VAR, 40, np.random.default_rng(5))
+    clean = fit_sensor(d, z, 0.01, max_terms=2)
+    real, calls = scipy.optimize.least_squares, []
+
+    def failing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) in (3, 40):
+            raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+        return real(*args, **kwargs)
+    monkeypatch.setattr(scipy.optimize, "least_squares", failing)
+    fit = fit_sensor(d, z, 0.01, max_terms=2)
+    assert len(calls) > 40
+    assert fit.mean_fit.chi2 == pytest.approx(clean.mean_fit.chi2, rel=1e-3)
