@@ -14,6 +14,10 @@ description has no anchor sigma, the estimate is in the anchor frame (anchor 0 a
 
 `round_robin: true`: one anchor answers per epoch, in turn (the other columns hold 0: no range), as
 tags that range to one anchor at a time do (`uwb.multilateration`'s automatic window then spans a round).
+`site: field`: four beacons round a 70 x 45 m field, 10-70 m from the path, one lap in 200 s (about 1 m/s)
+instead of the 10 x 8 m room (one lap in 40 s); with `round_robin`, a few Hz and `wheel_scale_error` (the right
+wheel reading long by that fraction: odometry that drifts by a few %), the regime of a vehicle ranging to far
+beacons one at a time.
 
 `time_offset: {ranges: s}`: the range sample stamped t measures the tag at t + offset on the wheels' (and the
 states') clock (fusionkit's sign convention, docs/models/unified_graph.md#time-offsets: ranging that lags by
@@ -38,14 +42,18 @@ POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 WHEEL_DISTANCE = 0.3      # m
 LEVER_ARM = [0.10, 0.05]  # m, tag on the robot
 ROOM = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]  # anchors at the corners (m)
+FIELD = [[0.0, 0.0], [70.0, 4.0], [66.0, 45.0], [-4.0, 42.0]]  # beacons round a field, 10-70 m from the path (m)
+SITES = {"room": (ROOM, 40.0, "UWB anchors at the corners of a 10 x 8 m room (m)"),  # anchors, lap (s), summary
+         "field": (FIELD, 200.0, "UWB beacons round a 70 x 45 m field (m)")}
 BIAS_RATE = 10.0  # Hz: a drifting bias needs no more variables than this (faster ranging shares them)
 
 
-def lissajous(t: np.ndarray, phase: float, room: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (N, 2) and headings (N,) of a smooth closed path inside the room's bounding box."""
+def lissajous(t: np.ndarray, phase: float, room: np.ndarray, lap: float = 40.0) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 2) and headings (N,) of a smooth closed path inside the room's bounding box, one lap in
+    `lap` s."""
     lo, hi = room.min(axis=0), room.max(axis=0)
     centre, half = (lo + hi) / 2, 0.35 * (hi - lo)
-    w = 2 * np.pi / 40.0  # one lap in 40 s
+    w = 2 * np.pi / lap
     pos = centre + half * np.column_stack([np.sin(w * t + phase), np.sin(2 * w * t + 1.7 * phase)])
     vel = half * np.column_stack([w * np.cos(w * t + phase), 2 * w * np.cos(2 * w * t + 1.7 * phase)])
     return pos, np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
@@ -82,17 +90,20 @@ class UwbSimulator(Simulator):
                              "outlier_fraction": {"type": "number", "minimum": 0, "maximum": 0.5},
                              "burst_s": POSITIVE, "wheel_sigma": NONNEG,
                              "unknown_anchors": {"type": "array",
-                                                 "items": {"type": "integer", "minimum": 0, "maximum": len(ROOM) - 1}},
+                                                 "items": {"type": "integer", "minimum": 0,
+                                                           "maximum": len(ROOM) - 1}},  # every site has 4 anchors
                              "anchor_error": NONNEG, "scale_error": {"type": "number", "minimum": -0.1, "maximum": 0.1},
                              "bias_model": {"enum": ["none", "constant", "time_varying"]},
                              "round_robin": {"type": "boolean"},
+                             "site": {"enum": list(SITES)}, "wheel_scale_error": {"type": "number", "minimum": -0.2,
+                                                                                  "maximum": 0.2},
                              "time_offset": {"type": "object", "properties": {"ranges": CLOCK_SCHEMA},
                                              "additionalProperties": False}},
               "additionalProperties": False}
     defaults = {"robots": 1, "duration": 60.0, "rate": 10.0, "range_sigma": 0.05, "bias_sigma": 0.15,
                 "bias_drift": 0.03, "outlier_fraction": 0.0, "burst_s": 1.0, "wheel_sigma": 0.02,
                 "unknown_anchors": [], "anchor_error": 1.0, "scale_error": 0.0, "bias_model": "time_varying",
-                "round_robin": False, "time_offset": {}}
+                "round_robin": False, "site": "room", "wheel_scale_error": 0.0, "time_offset": {}}
 
     def _params(self, params: dict) -> dict:
         return {**self.defaults, **params}
@@ -111,19 +122,20 @@ class UwbSimulator(Simulator):
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
         p = self._params(params)
-        anchors = np.asarray(ROOM, float)
+        anchors, lap, _ = SITES[p["site"]]
+        anchors = np.asarray(anchors, float)
         n = len(anchors)
         t = sample_times(p["duration"], p["rate"])
         streams, truth, tags = {}, {}, {}
         b = np.asarray(LEVER_ARM)
         for j, r in enumerate(ROBOT_NAMES[:p["robots"]]):
-            pos, heading = lissajous(t, 1.3 * j, anchors)
+            pos, heading = lissajous(t, 1.3 * j, anchors, lap)
             c, s = np.cos(heading), np.sin(heading)
             tag = pos + np.column_stack([c * b[0] - s * b[1], s * b[0] + c * b[1]])
             tags[r] = tag
             dt = 1.0 / p["rate"]
             if "ranges" in p["time_offset"]:  # the ranges see the tag at their stamp + offset (+ drift)
-                pos_m, heading_m = lissajous(clock_times(p["time_offset"]["ranges"], t), 1.3 * j, anchors)
+                pos_m, heading_m = lissajous(clock_times(p["time_offset"]["ranges"], t), 1.3 * j, anchors, lap)
                 tag_m = pos_m + np.column_stack([np.cos(heading_m) * b[0] - np.sin(heading_m) * b[1],
                                                  np.sin(heading_m) * b[0] + np.cos(heading_m) * b[1]])
             else:
@@ -138,6 +150,7 @@ class UwbSimulator(Simulator):
                 z[np.arange(len(t))[:, None] % n != np.arange(n)[None]] = 0.0
             vr, vl = wheel_speeds(t, pos, heading, WHEEL_DISTANCE)
             vr, vl = vr + rng.normal(0.0, p["wheel_sigma"], len(t)), vl + rng.normal(0.0, p["wheel_sigma"], len(t))
+            vr = vr * (1.0 + p["wheel_scale_error"])  # a right wheel that reads long: odometry that drifts
             cols = tuple(f"r{i}" for i in range(n))
             streams[f"ranges_{r}"] = Stream(f"ranges_{r}", t, cols, z, "simulated:ranges")
             streams[f"wheels_{r}"] = Stream(f"wheels_{r}", t, ("v_right", "v_left"), np.column_stack([vr, vl]),
@@ -166,7 +179,8 @@ class UwbSimulator(Simulator):
 
     def robots(self, params: dict) -> dict[str, dict]:
         p = self._params(params)
-        anchors = np.asarray(ROOM, float)
+        site, _, summary = SITES[p["site"]]
+        anchors = np.asarray(site, float)
         rng = np.random.default_rng(12345)  # the description's guess for the unknown anchors
         nominal, sigma = anchors.copy(), [[0.001, 0.001] for _ in anchors]
         for i in p["unknown_anchors"]:
@@ -175,7 +189,7 @@ class UwbSimulator(Simulator):
         anchor = {"type": "point2", "values": nominal.round(4).tolist(), "sigma": sigma}
         if _unsurveyed(p):
             del anchor["sigma"]  # no survey: the values are placeholders the initializer replaces
-        out = {ANCHORS: {"name": ANCHORS, "summary": "UWB anchors at the corners of a 10 x 8 m room (m)",
+        out = {ANCHORS: {"name": ANCHORS, "summary": summary,
                          "parameters": {"anchor": anchor}}}
         for r in ROBOT_NAMES[:p["robots"]]:
             desc = {"name": r, "summary": "differential-drive robot with a UWB tag",

@@ -43,3 +43,21 @@ def test_a_window_of_one_epoch_cannot_place_a_round_robin_robot():
     with simulated_config("uwb.sim", ROUND_ROBIN, seed=0, edit=one_epoch) as config:
         with pytest.raises(ConfigError, match=r"initializers\[0\]\.stream.*no state has ranges to enough known anchors"):
             estimate(config)
+
+
+def test_the_field_site_ranges_one_far_beacon_at_a_time_at_walking_speed_with_drifting_odometry():
+    """`site: field` (the regime of a vehicle ranging to far beacons one at a time): four beacons 10-70 m from the
+    path, about 1 m/s, one range per epoch at 2 Hz, and a right wheel reading 3 % long."""
+    from fusionkit.pipeline import read_sources
+    params = {"site": "field", "round_robin": True, "rate": 2.0, "duration": 240.0, "wheel_scale_error": 0.03,
+              "bias_model": "constant"}
+    with simulated_config("uwb.sim", params, seed=1) as config:
+        streams, truth = read_sources(config)
+    pose = truth.trajectories["a"].pose_array()
+    speed = np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1) * 2.0
+    assert 0.5 < np.median(speed) < 1.5
+    ranges = streams["ranges_a"].values
+    assert np.all(np.count_nonzero(ranges, axis=1) == 1)
+    assert 10.0 < ranges[ranges > 0].min() and ranges.max() < 75.0
+    wheels = streams["wheels_a"].values
+    assert np.mean(wheels[:, 0] - wheels[:, 1]) > 0.01  # the right wheel reads long: the odometry turns left
