@@ -369,9 +369,13 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
         problem.notes.extend(problem.measurement_states.beyond_windows(solution.values))
     reg = registry()
     baselines: dict[str, dict[str, Stream]] = {}
+    if solution.rejection:  # a model error diagnosed from an estimate that does not fit would mislead
+        problem.notes.append("the factor types' checks of the estimate (e.g. range biases that grow with distance) "
+                             "were not made: the solve was rejected, its estimate is no basis for them")
     for spec in config.factors:  # what each entry's factor type says of the estimate, and its sensor alone
         factor_type = reg.get("factor_types", spec.type)()
-        problem.notes.extend(factor_type.review(problem.context, spec, solution.values))
+        if not solution.rejection:
+            problem.notes.extend(factor_type.review(problem.context, spec, solution.values))
         if spec.get("robot") in truth.trajectories:
             for name, stream in factor_type.baseline(problem.context, spec, solution.values).items():
                 baselines.setdefault(spec["robot"], {})[name] = stream

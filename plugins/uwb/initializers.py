@@ -29,6 +29,7 @@ import numpy as np
 
 from fusionkit.api import POINT2, POSE2, fit_range_origin, Initializer, Spec
 
+from .alignment import PIECE_S, align_pieces, odometry_path
 from .factors import ANCHOR_PARAMETER, RANGE_COLUMN, _range_rows, lever_arm
 from .survey import anchor_frame, gauge_factors, line_of_sight, place_anchors, range_matrix, rigid_fit
 
@@ -38,7 +39,8 @@ ROBUST_SCALE = 0.3  # m: ranges this far off count half (Cauchy weights: NLOS ou
 HEADING_BASELINE = 1.0  # s: planar headings from positions this far apart (not from noisy neighbours)
 GAUGE_SIGMA = 1e-6  # m, rad: the gauge priors of the anchor frame (any value leaves the solution's shape alone)
 MIRROR_MARGIN = 1.0  # the mirror image is told apart when the solved errors (-log likelihood) differ by more
-MIRROR_ITERATIONS = 100  # Levenberg-Marquardt iterations that judge a placement and its mirror image
+MIRROR_ITERATIONS = 100  # Levenberg-Marquardt iterations that judge a placement and its mirror image (or a start)
+SMEAR = 0.25  # m: a tag that moves more within the multilateration window is not placed epoch by epoch
 
 
 @dataclass
@@ -92,6 +94,12 @@ def multilaterate(t_states: np.ndarray, t_ranges: np.ndarray, anchor_index: np.n
         JtJ = np.einsum("swi,swj->sij", J, J) + 1e-9 * np.eye(dim)
         x = x - np.linalg.solve(JtJ, np.einsum("swi,sw->si", J, e)[..., None])[..., 0]
     return x, usable
+
+
+def smear(path: np.ndarray, t: np.ndarray, window: float) -> float:
+    """How far (m) the robot typically travels within `window` s: its median speed along the dead-reckoned path."""
+    speed = np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1) / np.maximum(np.diff(t), 1e-9)
+    return float(np.median(speed) * window) if len(speed) else 0.0
 
 
 def round_window(t: np.ndarray, anchor: np.ndarray, need: int) -> float:
@@ -166,7 +174,7 @@ class Multilateration(Initializer):
             self._self_survey(ctx, spec, keys, ranges, self._window(ctx, spec, ranges, n))
             return
         known = ~np.isin(ranges.anchor, unknown)
-        self._place(ctx, spec, anchors, ranges.subset(known), planar_anchors)
+        self._place(ctx, spec, anchors, ranges.subset(known), planar_anchors, odometry=True)
         for i in unknown:
             a, c, rms, count = self._fit(ctx, spec, ranges, i, planar_anchors)
             ctx.set_initial(keys[i], a if not planar_anchors else a[:2])
@@ -175,21 +183,68 @@ class Multilateration(Initializer):
             ctx.notes.append(f"{spec.label}: anchor {i} initialized at ({', '.join(f'{x:.3f}' for x in a)}), bias "
                              f"{c:+.3f} m, fit rms {rms:.3f} m over {count} ranges")
 
-    def _place(self, ctx, spec: Spec, anchors: np.ndarray, ranges: "_Ranges", planar_anchors: bool) -> None:
-        """Every pose from the ranges to `anchors` (n, d) by per-state multilateration."""
+    def _place(self, ctx, spec: Spec, anchors: np.ndarray, ranges: "_Ranges", planar_anchors: bool,
+               odometry: bool = False) -> None:
+        """Every pose from the ranges to `anchors` (n, d) by per-state multilateration; with `odometry`, for a
+        planar robot ranging round-robin whose odometry links every state and that moves more than SMEAR while the
+        anchors answer in turn, also the dead-reckoned path aligned to the ranges (alignment.py), and of the two
+        the start the robot's factors fit better once solved."""
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         planar = states.family.vartype is POSE2
         b = lever_arm(ctx.robot(robot), spec.get("tag"))
         height = float(b[2]) if (planar and not planar_anchors) else None
         need = (anchors.shape[1] if height is None else 2) + 1
-        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors,
-                                    self._window(ctx, spec, ranges, need), height)
-        if not usable.any():
+        window = self._window(ctx, spec, ranges, need)
+        pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, window, height)
+        path = odometry_path(ctx.records, [ctx.pose_key(robot, k) for k in range(len(states))]) \
+            if odometry and planar and window > 0 else None
+        if path is not None and smear(path, states.t, window) <= SMEAR:
+            path = None  # the tag hardly moves while the anchors answer in turn: multilateration places it
+        if not usable.any() and path is None:
             raise spec.error("stream", "no state has ranges to enough known anchors within the window; widen "
                              "`window` or give more anchors known positions")
-        pos = pos[usable][nearest_index(states.t[usable], states.t)]  # states short of ranges: the nearest usable
-        self._set_poses(ctx, robot, states, pos, b, planar, spec.get("heading", "travel" if planar else "keep"))
+        if usable.any():
+            guesses = np.where(usable[:, None], pos[:, :2], np.nan)
+            pos = pos[usable][nearest_index(states.t[usable], states.t)]  # states short of ranges: the nearest usable
+            self._set_poses(ctx, robot, states, pos, b, planar, spec.get("heading", "travel" if planar else "keep"))
+        else:
+            guesses = None
+        if path is not None:
+            self._try_odometry(ctx, spec, states, path, b, anchors, ranges, height, guesses, usable.any())
+
+    def _try_odometry(self, ctx, spec: Spec, states, path: np.ndarray, b: np.ndarray, anchors: np.ndarray,
+                      ranges: "_Ranges", height: float | None, guesses, have_multilateration: bool) -> None:
+        """The dead-reckoned path aligned to the ranges as the start, if the robot's factors fit it better than the
+        multilaterated one once solved (or nothing else places the robot); a note says so."""
+        robot = spec["robot"]
+        local = self._robot_graph(ctx, robot, spec["anchors"])
+        if have_multilateration:
+            from_ranges = self._solved_error(local, ctx.initial)
+        flat = anchors[ranges.anchor][:, :2]
+        rise = 0.0 if height is None else anchors[ranges.anchor][:, 2] - height
+        z = np.sqrt(np.maximum(ranges.z ** 2 - rise ** 2, 0.0))  # horizontal ranges (planar tag, 3-D anchors)
+        placed = align_pieces(path, states.t, b[:2], nearest_index(states.t, ranges.t), flat, z, guesses)
+        keys = [ctx.pose_key(robot, k) for k in range(len(states))]
+        before = {k: ctx.initial.atPose2(k) for k in keys} if have_multilateration else {}
+        for k, (x, y, th) in zip(keys, placed):
+            ctx.set_initial(k, gtsam.Pose2(x, y, th))
+        from_odometry = self._solved_error(local, ctx.initial)
+        if have_multilateration and from_ranges <= from_odometry:
+            for k, pose in before.items():
+                ctx.set_initial(k, pose)
+            return
+        better = f" (its solve fits {from_ranges / from_odometry:.3g}x better)" if have_multilateration else ""
+        ctx.notes.append(f"{spec.label}: the ranges alone cannot place the robot epoch by epoch: it starts on its "
+                         f"odometry's dead-reckoned path aligned to the ranges (each {PIECE_S:g} s piece placed by a "
+                         f"global search over rotation and translation){better}")
+
+    @staticmethod
+    def _solved_error(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> float:
+        """The error of `graph` after a short Levenberg-Marquardt solve from `values` (how good a start is)."""
+        settings = gtsam.LevenbergMarquardtParams()
+        settings.setMaxIterations(MIRROR_ITERATIONS)
+        return graph.error(gtsam.LevenbergMarquardtOptimizer(graph, values, settings).optimize())
 
     def _fit(self, ctx, spec: Spec, ranges: "_Ranges", i: int, planar_anchors: bool):
         """Anchor i and its constant bias from its ranges at the current poses: (a, c, rms, count)."""
@@ -268,9 +323,7 @@ class Multilateration(Initializer):
             ctx.set_initial(key, a)
         self._place(ctx, spec, anchors, ranges, True)
         up = bool(anchor_frame(anchors).transformFrom(anchors[2])[1] > 0)
-        settings = gtsam.LevenbergMarquardtParams()
-        settings.setMaxIterations(MIRROR_ITERATIONS)
-        return local.error(gtsam.LevenbergMarquardtOptimizer(local, ctx.initial, settings).optimize()), up, anchors
+        return self._solved_error(local, ctx.initial), up, anchors
 
     @staticmethod
     def _robot_graph(ctx, robot: str, anchors_robot: str) -> gtsam.NonlinearFactorGraph:

@@ -61,3 +61,68 @@ def test_the_field_site_ranges_one_far_beacon_at_a_time_at_walking_speed_with_dr
     assert 10.0 < ranges[ranges > 0].min() and ranges.max() < 75.0
     wheels = streams["wheels_a"].values
     assert np.mean(wheels[:, 0] - wheels[:, 1]) > 0.01  # the right wheel reads long: the odometry turns left
+
+
+def test_a_dead_reckoned_path_is_placed_where_the_ranges_put_it_despite_outliers():
+    """alignment.align: a path rotated by 2 rad and moved by (30, -12) m is put back from 121 ranges (5 cm noise)
+    to four far beacons (one per state, in turn) to within 8 cm and 5 mrad with 10 % of them 1-5 m too long (the
+    Cauchy weights of a 1-m scale leave those a few centimetres of pull: a start, not an estimate)."""
+    from fusionkit_plugins.uwb.alignment import align
+    rng = np.random.default_rng(3)
+    s = np.linspace(0.0, 60.0, 121)
+    truth = np.column_stack([20 + 15 * np.cos(s / 10), 20 + 10 * np.sin(s / 8), np.zeros(len(s))])
+    step = np.diff(truth[:, :2], axis=0)
+    truth[:, 2] = np.append(np.arctan2(step[:, 1], step[:, 0]), np.arctan2(step[-1, 1], step[-1, 0]))
+    anchors = np.array([[0.0, 0.0], [70.0, 4.0], [66.0, 45.0], [-4.0, 42.0]])
+    lever = np.array([0.1, 0.05])
+    c, si = np.cos(truth[:, 2]), np.sin(truth[:, 2])
+    tag = truth[:, :2] + np.column_stack([c * lever[0] - si * lever[1], si * lever[0] + c * lever[1]])
+    which = np.arange(len(s)) % 4
+    z = np.linalg.norm(tag - anchors[which], axis=1) + rng.normal(0, 0.05, len(s))
+    z[rng.uniform(size=len(s)) < 0.1] += rng.uniform(1, 5)
+    phi, t = 2.0, np.array([30.0, -12.0])
+    R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
+    moved = np.column_stack([truth[:, :2] @ R.T + t, truth[:, 2] + phi])
+    placed, _ = align(moved, lever, np.arange(len(s)), anchors[which], z)
+    assert np.max(np.linalg.norm(placed[:, :2] - truth[:, :2], axis=1)) < 0.08  # measured 0.046
+    assert np.max(np.abs(np.angle(np.exp(1j * (placed[:, 2] - truth[:, 2]))))) < 5e-3
+
+
+FIELD = {"site": "field", "round_robin": True, "rate": 2.0, "duration": 240.0, "wheel_scale_error": 0.03,
+         "bias_model": "constant"}
+
+
+def _run(folder, start_from_truth: bool = False):
+    import yaml
+    from fusionkit.config.loader import load_config
+    config = yaml.safe_load((folder / "config.yaml").read_text())
+    if start_from_truth:
+        config["sources"].append({"type": "tum", "name": "start", "path": "truth/a.tum"})
+        config["initializers"] = [{"type": "pose.interpolate", "robot": "a", "stream": "start"}]
+    (folder / "run.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    return estimate(load_config(folder / "run.yaml"), keep_rejected=True)
+
+
+@pytest.mark.slow
+def test_far_round_robin_ranging_starts_on_the_aligned_odometry_and_ends_near_the_good_start_solve(tmp_path,
+                                                                                                    monkeypatch):
+    """The field regime (2 Hz round-robin to beacons 10-70 m away, 3 % odometry drift, seed 1): per-epoch
+    multilateration alone starts the solve where it ends at chi2/dof 107 and 0.38 m; the dead-reckoned path aligned
+    piece by piece is chosen automatically (a note says so) and ends within 1.5x of the solve started from the truth
+    (ATE 0.29 against 0.27 m; measured). The unmodelled drift leaves chi2/dof above the gate in every case: the
+    run is rejected, and no model error is diagnosed from it."""
+    from fusionkit.simulate import write_dataset
+    from fusionkit.sweep import override_text
+    from fusionkit_plugins.uwb import initializers
+    write_dataset("uwb.sim", tmp_path, [f"{k}={override_text(v)}" for k, v in FIELD.items()], seed=1)
+    good, aligned = _run(tmp_path, start_from_truth=True), _run(tmp_path)
+    monkeypatch.setattr(initializers.Multilateration, "_try_odometry", lambda *args, **kwargs: None)
+    ranges_only = _run(tmp_path)
+    ate = {name: r.evaluation["trajectories"]["a"]["ate_rmse_m"]
+           for name, r in (("good", good), ("aligned", aligned), ("ranges", ranges_only))}
+    assert any("starts on its odometry's dead-reckoned path aligned to the ranges" in n for n in aligned.notes)
+    assert ate["aligned"] < 1.5 * ate["good"], ate
+    assert aligned.solution.chi2_per_dof < 0.5 * ranges_only.solution.chi2_per_dof
+    assert aligned.solution.rejection and any("checks of the estimate" in n and "were not made" in n
+                                              for n in aligned.notes)
+    assert not any("grow with distance" in n and "scale error" in n for n in aligned.notes)
