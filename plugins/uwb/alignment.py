@@ -4,11 +4,11 @@ turn, and headings from the travel of such positions are noise).
 
 The odometry factors between consecutive states (native BetweenFactorPose2) are composed from the origin into a
 dead-reckoned path. Odometry drifts (a few % of the distance), so the path is placed in pieces of PIECE_S seconds,
-each rigidly (rotation phi, translation t) where it best explains its ranges, by a global search: for each of ROTATIONS rotations, the translation by Gauss-Newton with Cauchy weights (scale
-CAUCHY_SCALE: outliers and the drift of the path hardly pull), started from the anchors' centroid and from the
-multilaterated positions where there are any; the best REFINED rotations are then refined with the translation
-(Gauss-Newton on all three). The robust cost is
-sum log(1 + (r / CAUCHY_SCALE)^2) over the ranges, r the range residual of the nearest state's tag.
+each rigidly (rotation phi, translation t) where it best explains its ranges, by a global search: for each of
+ROTATIONS rotations, the translation by Gauss-Newton with Cauchy weights (scale CAUCHY_SCALE: outliers and the
+drift of the path hardly pull), started from the anchors' centroid and from the multilaterated positions where
+there are any; the best REFINED rotations are then refined with the translation (Gauss-Newton on all three). The
+robust cost is sum log(1 + (r / CAUCHY_SCALE)^2) over the ranges, r the range residual of the nearest state's tag.
 """
 
 from __future__ import annotations
