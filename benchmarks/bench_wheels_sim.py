@@ -206,8 +206,14 @@ def report(runs: list[dict]) -> tuple[str, dict]:
                 "ratio_worst": float(np.max(ratio))}
             rows.append([fault, len(rs)] + [_cell(errs[m], digits) for m in methods]
                         + [f"{np.sum(ratio < 1)}/{len(rs)}", f"{np.median(ratio):.2f}", f"{np.max(ratio):.2f}"])
+        worst = {m: max(FAULTS, key=lambda f: raw[f][measure][m]["median"]) for m in methods}
+        raw.setdefault("worst_class", {})[measure] = {
+            m: {"class": worst[m], "median": raw[worst[m]][measure][m]["median"]} for m in methods}
+        rows.append(["worst class", len(runs)] + [f"{raw[worst[m]][measure][m]['median']:.{digits}f} ({worst[m]})"
+                                                  for m in methods] + ["", "", ""])
         parts.append(table(["class", "runs"] + list(methods) + ["graph best", "ratio med", "ratio worst"], rows,
-                           f"final {measure} error ({unit}), median / 90th percentile; ratio = graph / best rule per run"))
+                           f"final {measure} error ({unit}), median / 90th percentile; ratio = graph / best rule per "
+                           "run; worst class: each method's largest class median"))
     rows = []
     for label, faults in (("clean", ["clean"]), ("faulty", [f for f in FAULTS if f != "clean"])):
         z = np.abs(np.array([r["z"] for r in runs if r["fault"] in faults and "z" in r]))
