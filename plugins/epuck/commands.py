@@ -62,10 +62,13 @@ class FitIr(Command):
                 raise DataError(f"{path}: sensor {s}: {exc}") from None
             name = args.names.format(i=s)
             models[name] = {"mean": fit.mean_fit.terms, "variance": fit.var_fit.terms}
-            report["sensors"][name] = {"x": fit.x.tolist(), "count": fit.count.tolist(), "mean": fit.mean.tolist(),
+            report["sensors"][name] = {"dropouts": fit.dropped, "x": fit.x.tolist(), "count": fit.count.tolist(),
+                                       "mean": fit.mean.tolist(),
                                        "variance": fit.var.tolist(), "mean_fit": _curve_report(fit.mean_fit),
                                        "variance_fit": _curve_report(fit.var_fit)}
-            lines.append(f"  {name}: {len(fit.x)} distances; mean {len(fit.mean_fit.terms)} term(s), chi2/dof "
+            lines.append(f"  {name}: {len(fit.x)} distances" + (f", {fit.dropped} drop-out(s) (0 mid-range) left "
+                                                                 "out" if fit.dropped else "")
+                         + f"; mean {len(fit.mean_fit.terms)} term(s), chi2/dof "
                          f"{fit.mean_fit.chi2_per_dof:.2f}; variance {len(fit.var_fit.terms)} term(s), chi2/dof "
                          f"{fit.var_fit.chi2_per_dof:.2f}; worst residual {np.abs(fit.mean_fit.residual_sigmas).max():.1f}"
                          f" / {np.abs(fit.var_fit.residual_sigmas).max():.1f} sigma")

@@ -2,7 +2,9 @@
 functions behind `fusionkit epuck-fit-ir` and `fusionkit epuck-fit-motion`.
 
 IR sensor models. Readings at known distances (the wall perpendicular to the sensor's axis, many
-readings per distance) give per distance the mean reading and its variance. Each is fitted by a
+readings per distance) give per distance the mean reading and its variance, drop-outs left out (a
+reading of exactly 0 at a distance whose median reading is not: the sensor now and then returns
+nothing mid-range). Each is fitted by a
 Gaussian sum of 1 to `max_terms` terms in weighted least squares: the mean with the standard error
 of the sample mean, s^2 / n, the variance with that of the sample variance, 2 s^4 / (n - 1). A term
 is parametrized as A exp(p1 (x - xc) + p2 (x - xc)^2), p2 < 0, xc the data's mean x: the same
@@ -238,6 +240,19 @@ class SensorFit:
     var: np.ndarray
     mean_fit: CurveFit
     var_fit: CurveFit
+    dropped: int = 0  # drop-outs left out (readings of 0 where the distance's median reading is not)
+
+
+def dropouts(distance: np.ndarray, reading: np.ndarray, unit: float) -> np.ndarray:
+    """Which readings are drop-outs: exactly 0 at a distance whose median reading is not (a sensor that returns 0
+    mid-range now and then; where the median is 0 the zeros are the reading)."""
+    x = np.round(np.asarray(distance, float) / unit, 9)
+    out = np.zeros(len(x), bool)
+    for v in np.unique(x):
+        at = x == v
+        if np.median(reading[at]) > 0:
+            out |= at & (reading == 0)
+    return out
 
 
 def distance_statistics(distance: np.ndarray, reading: np.ndarray, unit: float) -> tuple[np.ndarray, ...]:
@@ -251,7 +266,10 @@ def distance_statistics(distance: np.ndarray, reading: np.ndarray, unit: float) 
 
 
 def fit_sensor(distance: np.ndarray, reading: np.ndarray, unit: float = 0.01, max_terms: int = 3) -> SensorFit:
-    """Mean and variance models of one sensor from its readings at known distances (m)."""
+    """Mean and variance models of one sensor from its readings at known distances (m); drop-outs (`dropouts`)
+    are left out of both and counted."""
+    dropped = dropouts(distance, reading, unit)
+    distance, reading = np.asarray(distance)[~dropped], np.asarray(reading)[~dropped]
     x, count, mean, var = distance_statistics(distance, reading, unit)
     if np.any(count < 2):
         raise ValueError(f"each distance needs two or more readings; {np.sum(count < 2)} distance(s) have one")
@@ -260,7 +278,7 @@ def fit_sensor(distance: np.ndarray, reading: np.ndarray, unit: float = 0.01, ma
     var = np.maximum(var, 1e-12)
     mean_fit = fit_gaussian_sum(x, mean, np.sqrt(var / count), max_terms)
     var_fit = fit_gaussian_sum(x, var, var * np.sqrt(2.0 / (count - 1)), max_terms, positive=True)
-    return SensorFit(x, count, mean, var, mean_fit, var_fit)
+    return SensorFit(x, count, mean, var, mean_fit, var_fit, int(dropped.sum()))
 
 
 @dataclass
