@@ -23,10 +23,10 @@ from .eval.consistency import sigma_check
 from .eval.notes import evaluation_notes
 from .eval.timebase import check_truth_clock
 from .data.association import nearest
-from .data.recordings import bridging, gaps
+from .data.recordings import gaps
 from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions, position_consistency,
                               trajectory_errors)
-from .graph.builder import BuildContext, Problem, state_times
+from .graph.builder import BuildContext, Problem, record_times, state_times
 from .graph.keys import STATE, TIME_VARYING, Family
 from .graph.variables import component_names
 from .plugins import registry
@@ -153,7 +153,10 @@ def separate_recordings(ctx: BuildContext, streams: dict[str, Stream]) -> None:
     between = gaps(streams)
     if not between:
         return
-    crossing = bridging(ctx.records, ctx.key_time, between)
+    crossing = []
+    for r in ctx.records:
+        times = record_times(r, ctx.key_time)
+        crossing.append(bool(times) and any(min(times) <= end and max(times) >= start for end, start in between))
     if any(crossing):
         ctx.records[:] = [r for r, c in zip(ctx.records, crossing) if not c]
         where = ", ".join(f"{start:g}" for start in sorted({round(start, 6) for _, start in between}))

@@ -35,7 +35,7 @@ from . import hookimpl
 from .components import Command
 from .config.yamlio import load_yaml
 from .config.schema import validate_against
-from .errors import ConfigError, FusionkitError
+from .errors import FusionkitError
 from .parallel import BACKENDS, run_tasks
 
 SCHEMA = {"type": "object",

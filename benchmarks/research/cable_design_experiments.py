@@ -14,6 +14,7 @@ offsets against the truth, and the sigmas the calibration reports against those 
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import gtsam
@@ -39,8 +40,7 @@ def truth(desc: dict, rng: np.random.Generator) -> tuple[Geometry, np.ndarray]:
     d = design_of(desc)
     geo = d.geometry
     pulleys = geo.pulleys + rng.normal(0.0, PULLEY_ERROR, geo.pulleys.shape)
-    return (Geometry(pulleys, geo.attachments, geo.stiffness_EA, geo.mass, geo.com, geo.pulley_radius),
-            d.offsets + rng.normal(0.0, OFFSET_ERROR, geo.n))
+    return replace(geo, pulleys=pulleys), d.offsets + rng.normal(0.0, OFFSET_ERROR, geo.n)
 
 
 def measure(geo: Geometry, offsets: np.ndarray, positions: np.ndarray, rng: np.random.Generator):

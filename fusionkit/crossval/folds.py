@@ -18,9 +18,8 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..data.recordings import gaps
-from ..graph.builder import Problem
+from ..graph.builder import STATIC_TIME, Problem, record_times
 
-STATIC = float("-inf")
 BY = ("sample", "segment", "file")  # and "auto", the default
 CUT_TOLERANCE = 1e-6  # s: a state this close before a segment boundary belongs to the segment after it
 
@@ -54,13 +53,12 @@ class Units:
 
     plan: Plan
     labels: list[str]
-    spans: np.ndarray            # (n, 2) start and end time (s) of each unit
     of_record: list[np.ndarray]  # per record: its units (sorted, unique)
 
 
 def state_times(problem: Problem) -> np.ndarray:
     """The distinct times (s) of the problem's per-state variables."""
-    return np.unique([t for t in problem.key_time.values() if t != STATIC])
+    return np.unique([t for t in problem.key_time.values() if t != STATIC_TIME])
 
 
 def units(problem: Problem, plan: Plan) -> Units:
@@ -74,17 +72,18 @@ def units(problem: Problem, plan: Plan) -> Units:
         elif plan.by == "file":
             raise ConfigError("--by file: every source reads one file; give the recordings as a list (`path: [a.csv, "
                               "b.csv]`), or hold out stretches of time (--by segment)")
-    samples = _units(problem, times, np.concatenate([times, [np.inf]]))
-    if plan.by == "auto":
-        plan = dataclasses.replace(plan, by="segment" if any(len(u) > 1 for u in samples) else "sample")
-    if plan.by == "sample":
-        return Units(plan, [f"t = {t:g} s" for t in times], np.column_stack([times, times]), samples)
+    if plan.by in ("auto", "sample"):
+        samples = _units(problem, times, np.concatenate([times, [np.inf]]))
+        if plan.by == "auto":
+            plan = dataclasses.replace(plan, by="segment" if any(len(u) > 1 for u in samples) else "sample")
+        if plan.by == "sample":
+            return Units(plan, [f"t = {t:g} s" for t in times], samples)
     if plan.leave_one_out and not plan.cuts:
         raise ConfigError("--leave-one-out by segment (a factor links consecutive states): name the segments with "
                           "--cuts T1,T2,... or use --folds K for K equal stretches of time")
     edges = _segment_edges(times, plan)
     labels = [f"t = {a:g} .. {b:g} s" for a, b in zip(edges[:-1], edges[1:])]
-    return Units(plan, labels, np.column_stack([edges[:-1], edges[1:]]), _units(problem, times, edges))
+    return Units(plan, labels, _units(problem, times, edges))
 
 
 def recording_cuts(problem: Problem) -> tuple[float, ...]:
@@ -106,8 +105,7 @@ def _units(problem: Problem, times: np.ndarray, edges: np.ndarray) -> list[np.nd
     unit_of_time = dict(zip(times.tolist(), unit.tolist()))
     out = []
     for r in problem.records:
-        ts = {problem.key_time.get(k, STATIC) for k in r.factor.keys()}
-        out.append(np.array(sorted({unit_of_time[t] for t in ts if t in unit_of_time}), int))
+        out.append(np.array(sorted({unit_of_time[t] for t in record_times(r, problem.key_time)}), int))
     return out
 
 

@@ -26,7 +26,7 @@ import gtsam
 import numpy as np
 
 from ..errors import SolverError
-from ..graph.builder import FIXED_SIGMA, FactorRecord, Problem
+from ..graph.builder import FIXED_SIGMA, STATIC_TIME, FactorRecord, Problem
 from ..graph.noise import gaussian
 from ..solve import solve
 from ..solve.batch import solve_batch
@@ -34,7 +34,6 @@ from ..solve.checks import check_constrained
 from ..solve.factorization import linear_settings, resolved_ordering
 from ..solve.identifiability import marginal_factors
 
-STATIC = float("-inf")
 HELD = "crossval:held"  # label of the priors that hold the static variables at their training estimate
 
 
@@ -65,7 +64,7 @@ class Training:
 def train(problem: Problem, indices: list[int], settings: dict) -> Training:
     sub = subproblem(problem, [problem.records[i] for i in indices])
     result = solve(sub, {**settings, "marginals": False}, set())
-    static = sorted(k for k, t in sub.key_time.items() if t == STATIC)
+    static = sorted(k for k, t in sub.key_time.items() if t == STATIC_TIME)
     information = marginal_factors(sub, result.values, static, result.factorization == "qr")
     return Training(result.values, result.chi2_per_dof, result.rejection,
                     [f"{w.name}: {w.message}" for w in result.warnings], static, information)
@@ -134,7 +133,7 @@ def predict(problem: Problem, training: Training, indices: list[int], roles: Rol
         if not all(values.exists(k) for k in keys):
             out.unpredicted += 1
             continue
-        groups.setdefault(tuple(sorted(k for k in keys if problem.key_time.get(k) != STATIC)), []).append(r)
+        groups.setdefault(tuple(sorted(k for k in keys if problem.key_time.get(k) != STATIC_TIME)), []).append(r)
     for group in groups.values():
         joint = marginals.jointMarginalCovariance(gtsam.KeyVector(list(dict.fromkeys(
             k for r in group for k in r.factor.keys()))))
@@ -147,14 +146,14 @@ def predict(problem: Problem, training: Training, indices: list[int], roles: Rol
 def _held_problem(problem: Problem, training: Training, records: list[FactorRecord]) -> Problem:
     """The held-out solve: `records` plus a prior of FIXED_SIGMA holding each static variable they read at its
     training estimate (values: the training estimate and, for the states, the initializers')."""
-    static = sorted({k for r in records for k in r.factor.keys() if problem.key_time.get(k) == STATIC})
+    static = sorted({k for r in records for k in r.factor.keys() if problem.key_time.get(k) == STATIC_TIME})
     values = gtsam.Values(problem.initial)
     held = []
     for k in static:
         vartype = problem.keys.decode(k)[0].vartype
         value = vartype.read(training.values, k)
         values.update(k, value)
-        held.append(FactorRecord(vartype.prior(k, value, gaussian([FIXED_SIGMA] * vartype.dim)), HELD, STATIC))
+        held.append(FactorRecord(vartype.prior(k, value, gaussian([FIXED_SIGMA] * vartype.dim)), HELD, STATIC_TIME))
     return subproblem(problem, records + held, values)
 
 
@@ -171,14 +170,14 @@ def _anchors(problem: Problem, targets: list[FactorRecord]) -> list[FactorRecord
     first: dict[str, float] = {}
     for r in targets:
         for k in r.factor.keys():
-            t = problem.key_time.get(k, STATIC)
-            if t != STATIC:
+            t = problem.key_time.get(k, STATIC_TIME)
+            if t != STATIC_TIME:
                 robot = problem.keys.decode(k)[0].robot
                 first[robot] = min(first.get(robot, np.inf), t)
     anchors = []
     for r in targets:
         states = [(problem.keys.decode(k)[0].robot, problem.key_time[k]) for k in r.factor.keys()
-                  if problem.key_time.get(k, STATIC) != STATIC]
+                  if problem.key_time.get(k, STATIC_TIME) != STATIC_TIME]
         if states and all(t == first[robot] for robot, t in states):
             anchors.append(r)
     return anchors

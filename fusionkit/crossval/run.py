@@ -45,15 +45,15 @@ def built(config_path: str, overrides: tuple[str, ...], plan: Plan, reference: t
 
 def _build(config: RunConfig, plan: Plan, reference: tuple[str, ...]) -> Built:
     _check_config(config, reference)
-    streams, _ = read_sources(config)
-    problem = build_problem(config, streams)
     reg = registry()
     entries = [(reg.get("factor_types", spec.type)(), spec) for spec in config.factors]
     roles = Roles({spec.label: tuple(spec[f] for f in ft.stream_fields if spec.get(f)) for ft, spec in entries},
                   set(reference))
-    if not any(roles.predicted(spec.label) for spec in config.factors):
+    if not any(roles.predicted(spec.label) for spec in config.factors):  # before reading any data
         raise ConfigError(f"--reference {', '.join(reference)}: nothing to predict; every entry that reads a stream "
                           "reads a reference (leave out the streams to predict)")
+    streams, _ = read_sources(config)
+    problem = build_problem(config, streams)
     parts = {spec.label: ft.residual_parts(problem.context, spec) for ft, spec in entries}
     return Built(config, problem, units(problem, plan), roles, parts)
 

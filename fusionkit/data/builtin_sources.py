@@ -20,11 +20,6 @@ def resolve(base_dir: Path, path: str) -> Path:
     return p if p.is_absolute() else base_dir / p
 
 
-def existing_file(spec: Spec, base_dir: Path, what: str = "file") -> Path:
-    """The entry's `path`, resolved; a located error if it is missing or a folder."""
-    return existing_files(spec, base_dir, what)[0]
-
-
 def existing_files(spec: Spec, base_dir: Path, what: str = "file") -> list[Path]:
     """The entry's `path`, one file or a list of them (several recordings), resolved; a located error for one
     that is missing or a folder."""

@@ -16,9 +16,6 @@ import numpy as np
 from ..errors import DataError
 from .stream import Stream
 
-STATIC = float("-inf")
-
-
 def concatenated(streams: list[Stream], files: list[Path]) -> Stream:
     """One stream of the recordings `streams` (read from `files`, in order): the same columns, each starting after
     the previous one ends; its `parts` the files' spans."""
@@ -44,12 +41,3 @@ def gaps(streams: dict[str, Stream]) -> list[tuple[float, float]]:
     """(end of a recording, start of the next) of every stream given several files, sorted."""
     return sorted({(a[2], b[1]) for s in streams.values() for a, b in zip(s.parts, s.parts[1:])})
 
-
-def bridging(records, key_time: dict[int, float], between: list[tuple[float, float]]) -> list[bool]:
-    """Per record: whether its per-state variables lie on both sides of one of the gaps `between`."""
-    out = []
-    for r in records:
-        times = [key_time.get(k, STATIC) for k in r.factor.keys()]
-        times = [t for t in times if t != STATIC]
-        out.append(bool(times) and any(min(times) <= end and max(times) >= start for end, start in between))
-    return out

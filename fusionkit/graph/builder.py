@@ -54,6 +54,11 @@ class StateSet:
         return self.family.key(k)
 
 
+def record_times(record: "FactorRecord", key_time: dict[int, float]) -> list[float]:
+    """The times (s) of the per-state variables a record's factor reads (static variables left out)."""
+    return [t for t in (key_time.get(k, STATIC_TIME) for k in record.factor.keys()) if t != STATIC_TIME]
+
+
 @dataclass(slots=True)
 class FactorRecord:
     """A factor with the entry that made it and the time at which an incremental solver adds it;

@@ -15,7 +15,7 @@ pulley radius included), each column scaled by the parameter's prior sigma. fusi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import gtsam
 import numpy as np
@@ -55,9 +55,7 @@ def _prior(param: dict, n: int, dim: int) -> np.ndarray:
 
 def design_of(desc: dict) -> CableDesign:
     """The design of a cdpr description (its data, as robot_description_data gives it)."""
-    geo = nominal_geometry(desc)
-    radius = float(desc["cables"].get("pulley_radius", 0.0) or 0.0)
-    geo = Geometry(geo.pulleys, geo.attachments, geo.stiffness_EA, geo.mass, geo.com, radius)
+    geo = replace(nominal_geometry(desc), pulley_radius=float(desc["cables"].get("pulley_radius", 0.0) or 0.0))
     n = geo.n
     pulley, offset = desc["parameters"]["pulley"], desc["parameters"]["offset"]
     names = [f"pulley[{i}].{a}" for i in range(n) for a in "xyz"] + [f"offset[{i}]" for i in range(n)]
@@ -104,9 +102,7 @@ def candidate_blocks(design: CableDesign, positions: np.ndarray, encoder: float,
         for a in range(3):
             shift = np.zeros_like(geo.pulleys)
             shift[i, a] = STEP
-            up = Geometry(geo.pulleys + shift, geo.attachments, geo.stiffness_EA, geo.mass, geo.com, geo.pulley_radius)
-            down = Geometry(geo.pulleys - shift, geo.attachments, geo.stiffness_EA, geo.mass, geo.com,
-                            geo.pulley_radius)
+            up, down = replace(geo, pulleys=geo.pulleys + shift), replace(geo, pulleys=geo.pulleys - shift)
             J_theta[:, :, 3 * i + a] = (_lengths(up, positions, eye) - _lengths(down, positions, eye)) / (2 * STEP)
         J_theta[:, i, 3 * n + i] = 1.0
     J_x = np.zeros((M, n, 6))  # GTSAM Pose3 tangent: rotation (body), translation (body)

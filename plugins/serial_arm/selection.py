@@ -86,8 +86,6 @@ def select(design: Design, candidates: np.ndarray, kind: str, sigma: np.ndarray,
     if kind not in KINDS:
         raise ValueError(f"kind {kind!r}; expected one of {KINDS}")
     candidates = np.asarray(candidates, float)
-    if not 0 < count <= len(candidates):
-        raise ValueError(f"count {count} of {len(candidates)} candidates")
     G_all = regressor_blocks(design, candidates, kind, sigma)
     held = analyze(G_all.reshape(-1, G_all.shape[2]), np.ones(G_all.shape[2])).held
     kept = [j for j in range(G_all.shape[2]) if j not in held]
