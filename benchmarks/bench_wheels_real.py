@@ -26,9 +26,9 @@ from __future__ import annotations
 from dataclasses import replace
 
 from research.external_data import external_data
-from research.wheels_optiodom import (CIRCULAR, GRAPH, NAME, SQUARE, WheelParameters, checkpoint_fit, evaluate,
-                                      graph_calibration, least_squares, load_session, nominal, published,
-                                      umbmark_parameters)
+from research.wheels_optiodom import (CIRCULAR, INCREMENTS, LONG_HORIZON, NAME, SQUARE, WheelParameters,
+                                      checkpoint_fit, evaluate, graph_calibration, least_squares, load_session,
+                                      nominal, published, umbmark_parameters)
 from _timing import run_parts, table, timed
 
 DATA = external_data(NAME)
@@ -59,10 +59,12 @@ def calibrations(sessions) -> tuple[str, dict]:
             "OptiOdom objective (ours), circular": (checkpoint_fit(sessions[CIRCULAR]), CIRCULAR),
             "OptiOdom objective (ours), squares": (checkpoint_fit(sessions[SQUARE]), SQUARE)}
     graph = {}
-    for on in (CIRCULAR, SQUARE):
-        (params, sigma, result), seconds = timed(lambda: graph_calibration(sessions[on]))
-        sets[f"fusionkit graph, {SHORT[on]}"] = (params, on)
-        graph[SHORT[on]] = {"sigma": sigma, "seconds": seconds, "states": len(result.problem.states["robot"]),
+    for objective, settings in (("long horizon", LONG_HORIZON), ("increments", INCREMENTS)):
+        for on in (CIRCULAR, SQUARE):
+            (params, sigma, result), seconds = timed(lambda: graph_calibration(sessions[on], settings))
+            label = f"fusionkit graph ({objective}), {SHORT[on]}"
+            sets[label] = (params, on)
+            graph[label] = {"sigma": sigma, "seconds": seconds, "states": len(result.problem.states["robot"]),
                             "chi2_per_dof": result.solution.chi2_per_dof}
     for name, params in _published_parameters().items():
         sets[f"OptiOdom published, {SHORT[name]}"] = (params, name)
@@ -75,7 +77,7 @@ def calibrations(sessions) -> tuple[str, dict]:
             "squares max e_d", "final", "th (deg)"]
     text = table(head, rows, "OptiOdom recordings: dead reckoning with each parameter set (errors in m, deg)")
     text += "\n" + "\n".join(
-        f"fusionkit graph, {on}: {g['states']} states, estimate() {g['seconds']:.2f} s, chi2/dof "
+        f"{on}: {g['states']} states, estimate() {g['seconds']:.2f} s, chi2/dof "
         f"{g['chi2_per_dof']:.2f}; 1-sigma r_R, r_L, A = " + ", ".join(f"{x * 1e3:.3f}" for x in g["sigma"]) + " mm"
         for on, g in graph.items())
     raw["graph"] = graph
@@ -86,8 +88,21 @@ def calibrations(sessions) -> tuple[str, dict]:
     return text, raw
 
 
-LOO_METHODS = {"fusionkit graph": lambda s: graph_calibration(s)[0], "least squares": least_squares,
-               "OptiOdom objective (ours)": checkpoint_fit, "UMBmark": umbmark_parameters}
+LOO_METHODS = {"fusionkit graph (long horizon)": lambda s: graph_calibration(s, LONG_HORIZON)[0],
+               "fusionkit graph (increments)": lambda s: graph_calibration(s, INCREMENTS)[0],
+               "least squares": least_squares, "OptiOdom objective (ours)": checkpoint_fit, "UMBmark": umbmark_parameters}
+
+# The graph's wheel objectives, each left one run out: the documented one (LONG_HORIZON) and what it differs from.
+OBJECTIVES = {
+    "increments: wheels.preintegrated between states 1 s apart": INCREMENTS,
+    "long horizon from each run's start only (anchors: recording_start)": {
+        **LONG_HORIZON, "anchors": "recording_start", "mocap_scale": None},
+    "long horizon, every checkpoint, windows up to 20 s": {**LONG_HORIZON, "horizon": 20.0, "mocap_scale": None},
+    "long horizon, every checkpoint, whole runs": {**LONG_HORIZON, "mocap_scale": None},
+    "long horizon, every checkpoint, whole runs, motion capture noise_scale: estimate (documented)": LONG_HORIZON,
+    "increments + long horizon (documented)": {**LONG_HORIZON, "objective": "increments+long_horizon",
+                                               "wheel_sigma": INCREMENTS["wheel_sigma"]},
+}
 
 
 def held_out(session, fit) -> tuple[float, float]:
@@ -126,6 +141,35 @@ def leave_one_run_out(sessions) -> tuple[str, dict]:
     return text, raw
 
 
+def objectives(sessions) -> tuple[str, dict]:
+    """The graph's wheel objectives left one run out (max e_d along any held-out path, largest final error, and
+    the chi2/dof range of the five-run fits), beside OptiOdom's objective reimplemented."""
+    rows, raw = [], {}
+    for label, settings in OBJECTIVES.items():
+        cells = []
+        for name, session in sessions.items():
+            chi2 = []
+
+            def fit(runs, settings=settings, chi2=chi2):
+                params, _, result = graph_calibration(runs, settings)
+                chi2.append(result.solution.chi2_per_dof)
+                return params
+            along, final = held_out(session, fit)
+            raw[(label, SHORT[name])] = {"held_out_max_e_d": along, "held_out_max_final": final,
+                                         "chi2_per_dof": (min(chi2), max(chi2))}
+            cells += [f"{along:.4f}", f"{final:.4f}", f"{min(chi2):.2g}-{max(chi2):.2g}"]
+        rows.append([label, *cells])
+    cells = []
+    for name, session in sessions.items():
+        along, final = held_out(session, checkpoint_fit)
+        raw[("OptiOdom objective (ours)", SHORT[name])] = {"held_out_max_e_d": along, "held_out_max_final": final}
+        cells += [f"{along:.4f}", f"{final:.4f}", "-"]
+    rows.append(["OptiOdom objective (ours): scipy, checkpoints from each run's true start", *cells])
+    head = ["wheel objective", "circ held out max e_d", "max final", "chi2/dof", "squares held out max e_d",
+            "max final", "chi2/dof"]
+    return table(head, rows, "fusionkit graph, leave one run out: its wheel objectives (m)"), raw
+
+
 def segment_lengths(sessions) -> tuple[str, dict]:
     """The least-squares fit with each run cut into segments of 1, 5 and 20 s instead of whole runs."""
     rows, raw = [], {}
@@ -145,7 +189,7 @@ def graph_settings(sessions, quick: bool) -> tuple[str, dict]:
     sigmas, spacings = ((0.0001, 0.01), (5, 100)) if quick else ((0.0001, 0.0003, 0.003, 0.01), (5, 10, 50, 100))
     variants = [("wheel_sigma", v) for v in sigmas] + [("state_every", v) for v in spacings]
     for key, value in [(None, None)] + variants:
-        settings = GRAPH if key is None else {**GRAPH, key: value}
+        settings = INCREMENTS if key is None else {**INCREMENTS, key: value}
         label = "a priori" if key is None else f"{key} {value:g}"
         for on in (CIRCULAR, SQUARE):
             params, _, result = graph_calibration(sessions[on], settings)
@@ -154,8 +198,8 @@ def graph_settings(sessions, quick: bool) -> tuple[str, dict]:
             raw[(label, SHORT[on])] = params
     head = ["settings, calibrated on", "chi2/dof", "circ max e_d", "final", "th (deg)", "squares max e_d", "final",
             "th (deg)"]
-    title = (f"fusionkit graph: sensitivity to its settings (a priori: wheel_sigma {GRAPH['wheel_sigma']} m/sqrt(s), "
-             f"a state every {GRAPH['state_every']} cycles)")
+    title = (f"fusionkit graph (increments): sensitivity to its settings (a priori: wheel_sigma "
+             f"{INCREMENTS['wheel_sigma']} m/sqrt(s), a state every {INCREMENTS['state_every']} cycles)")
     return table(head, rows, title), raw
 
 
@@ -165,9 +209,10 @@ def graph_noise_held_out(sessions, quick: bool) -> tuple[str, dict]:
     of the fits on five runs: how much a noise stated as the data show (chi2/dof near 1) changes the held-out
     errors."""
     rows, raw = [], {}
-    variants = [(f"{sigma:g}", {**GRAPH, "wheel_sigma": sigma})
-                for sigma in (GRAPH["wheel_sigma"],) + (() if quick else (0.0003,)) + (0.0001,)]
-    variants.append((f"{GRAPH['wheel_sigma']:g}, both entries' noise_scale: estimate", {**GRAPH, "noise_scales": True}))
+    variants = [(f"{sigma:g}", {**INCREMENTS, "wheel_sigma": sigma})
+                for sigma in (INCREMENTS["wheel_sigma"],) + (() if quick else (0.0003,)) + (0.0001,)]
+    variants.append((f"{INCREMENTS['wheel_sigma']:g}, both entries' noise_scale: estimate",
+                     {**INCREMENTS, "noise_scales": True}))
     for label, settings in variants:
         cells = []
         for name, session in sessions.items():
@@ -184,7 +229,8 @@ def graph_noise_held_out(sessions, quick: bool) -> tuple[str, dict]:
         rows.append([label, *cells])
     head = ["wheel_sigma (m/sqrt(s))", "circ chi2/dof", "held out max e_d", "max final", "squares chi2/dof",
             "held out max e_d", "max final"]
-    text = table(head, rows, "fusionkit graph, leave one run out: its wheel noise as stated a priori and lower")
+    text = table(head, rows, "fusionkit graph (increments), leave one run out: its wheel noise as stated a priori "
+                             "and lower")
     for name, session in sessions.items():  # the scales the data give on all six runs
         scales = graph_calibration(session, variants[-1][1])[2].solution.noise_scales
         raw[("noise_scales", SHORT[name])] = scales
@@ -200,6 +246,7 @@ def run(quick: bool) -> dict:
     sessions = {name: load_session(name) for name in (CIRCULAR, SQUARE)}
     return run_parts({"calibrations": lambda: calibrations(sessions),
                       "leave_one_run_out": lambda: leave_one_run_out(sessions),
+                      "objectives": lambda: objectives(sessions),
                       "segments": lambda: segment_lengths(sessions),
                       "graph_settings": lambda: graph_settings(sessions, quick),
                       "graph_noise_held_out": lambda: graph_noise_held_out(sessions, quick)})
@@ -209,10 +256,11 @@ def summary(results: dict) -> list[str]:
     if not results["raw"]:
         return ["wheels (real): OptiOdom recordings not found, skipped"]
     c = results["raw"]["calibrations"]
-    nom, gsq, gci = c["nominal"], c["fusionkit graph, squares"], c["fusionkit graph, circular"]
+    nom, gsq, gci = (c["nominal"], c["fusionkit graph (long horizon), squares"],
+                     c["fusionkit graph (long horizon), circular"])
     circ = {k: (v["circular"].max_along, v["circular"].max_final) for k, v in
             (("nominal", nom), ("in", gci), ("held", gsq))}
-    return ["wheels (real, OptiOdom): circular runs max e_d / max final error: nominal %.4f / %.4f m, fusionkit graph "
+    return ["wheels (real, OptiOdom): circular runs max e_d / max final error: nominal %.4f / %.4f m, fusionkit graph (long horizon) "
             "calibrated on them %.4f / %.4f m (published OptiOdom 0.0293 / 0.0285 m), on the squares (held out) "
             "%.4f / %.4f m" % (*circ["nominal"], *circ["in"], *circ["held"])]
 

@@ -114,6 +114,26 @@ def write_session(session: Session, folder: Path, align: int = 1) -> tuple[Path,
     return wheels, mocap, starts
 
 
+def write_recordings(session: Session, folder: Path) -> tuple[list[Path], list[Path]]:
+    """Each run as its own recording: `wheels-NN.csv` (t,left,right: cumulative wheel angles, rad, from 0) and
+    `mocap-NN.tum` (its true poses, planar, z = 0), the runs' stamps shifted to follow each other one second
+    apart (several files of one source: fusionkit links nothing across two recordings)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    wheels, mocap, t0 = [], [], 0.0
+    for i, run in enumerate(session.runs):
+        t = t0 + run.t - run.t[0]
+        w, m = folder / f"wheels-{i:02d}.csv", folder / f"mocap-{i:02d}.tum"
+        np.savetxt(w, np.column_stack([t, run.left - run.left[0], run.right - run.right[0]]), delimiter=",",
+                   header="t,left,right", comments="", fmt="%.10g")
+        half = 0.5 * run.truth[:, 2]
+        np.savetxt(m, np.column_stack([t, run.truth[:, :2], np.zeros((len(t), 3)), np.sin(half), np.cos(half)]),
+                   fmt="%.10g")
+        wheels.append(w)
+        mocap.append(m)
+        t0 = t[-1] + 1.0
+    return wheels, mocap
+
+
 def dead_reckoning(run: Run, axle_length: float, radius_right: float, radius_left: float) -> np.ndarray:
     """(N + 1, 3) poses from the true start pose, as the reference implementation integrates them: per
     cycle ds = (dsR + dsL) / 2, dth = (dsR - dsL) / L, x += ds cos(th + dth / 2), likewise y, th += dth."""
@@ -218,33 +238,51 @@ def published(folder: Path | None = None) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-# The graph calibration's settings, fixed before looking at the results: motion capture (OptiTrack:
-# about 1 mm and 0.01 rad per pose), wheel travel noise 1 mm/sqrt(s) (ten times the encoder quantization
-# of 0.17 mm/sqrt(s) at 20 Hz: slip and floor unevenness), no sideways slip beyond that.
-GRAPH = {"state_every": 20, "wheel_sigma": 0.001, "mocap": {"rotation": 0.01, "translation": 0.001}}
+# The graph calibration's settings. INCREMENTS, fixed before looking at the results: motion capture
+# (OptiTrack: about 1 mm and 0.01 rad per pose), wheel travel noise 1 mm/sqrt(s) (ten times the encoder
+# quantization of 0.17 mm/sqrt(s) at 20 Hz: slip and floor unevenness), no sideways slip beyond that, the wheels
+# preintegrated between states 1 s apart. LONG_HORIZON, the documented systematic calibration: the wheels
+# dead-reckoned from every checkpoint (0.5 m of travel apart: the reference implementation's spacing) to the end of
+# its run (wheels.long_horizon, 1 cm per checkpoint), the motion capture's noise scale estimated from the data.
+INCREMENTS = {"objective": "increments", "state_every": 20, "wheel_sigma": 0.001,
+              "mocap": {"rotation": 0.01, "translation": 0.001}}
+LONG_HORIZON = {"objective": "long_horizon", "state_every": 20, "long_sigma": 0.01, "spacing": 0.5,
+                "mocap": {"rotation": 0.01, "translation": 0.001}, "mocap_scale": "estimate"}
+GRAPH = LONG_HORIZON
 
 
-def graph_config(wheels: Path, mocap: Path, settings: dict = GRAPH) -> dict:
-    """A fusionkit config calibrating optiodom_robot's radii and axle length: states every
-    `state_every` cycles, the driven wheels preintegrated between them, the motion-capture poses at them;
-    with `settings["noise_scales"]` both entries' noise scales estimated from the data (`noise_scale: estimate`)."""
-    scale = {"noise_scale": "estimate"} if settings.get("noise_scales") else {}
+def graph_config(wheels: list[Path], mocap: list[Path], settings: dict = GRAPH) -> dict:
+    """A fusionkit config calibrating optiodom_robot's radii and axle length from recordings (`wheels`, `mocap`:
+    one file per run): states every `state_every` cycles, the motion-capture poses at them, and the wheels as
+    `objective` says: "increments" (wheels.preintegrated between consecutive states), "long_horizon"
+    (wheels.long_horizon: `long_sigma` m per checkpoint, `spacing` m, `horizon` s and `anchors` if given) or both
+    ("increments+long_horizon"). `mocap_scale` "estimate": the motion capture's noise scale estimated from the data
+    (`noise_scale: estimate`); `noise_scales`: every entry's."""
+    every = "estimate" if settings.get("noise_scales") else None
+    scale = {"noise_scale": every} if every else {}
+    mocap_scale = settings.get("mocap_scale") or every
+    factors = [{"type": "pose.absolute", "robot": "robot", "stream": "mocap", "sigma": settings["mocap"],
+                **({"noise_scale": mocap_scale} if mocap_scale else {})}]
+    if "increments" in settings["objective"]:
+        factors.append({"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels",
+                        "sigma": settings["wheel_sigma"], **scale})
+    if "long_horizon" in settings["objective"]:
+        factors.append({"type": "wheels.long_horizon", "robot": "robot", "stream": "wheels",
+                        "sigma": settings["long_sigma"], "spacing": settings["spacing"],
+                        **{k: settings[k] for k in ("horizon", "anchors") if settings.get(k)}, **scale})
     return {"name": "optiodom_calibration",
             "robots": {"robot": {"description": "optiodom_robot",
                                  "states": {"stream": "wheels", "every": settings["state_every"], "type": "pose2"}}},
-            "sources": [{"type": "csv", "name": "wheels", "path": str(wheels)},
-                        {"type": "tum", "name": "mocap", "path": str(mocap)}],
-            "factors": [{"type": "pose.absolute", "robot": "robot", "stream": "mocap", "sigma": settings["mocap"],
-                         **scale},
-                        {"type": "wheels.preintegrated", "robot": "robot", "stream": "wheels",
-                         "sigma": settings["wheel_sigma"], **scale}],
+            "sources": [{"type": "csv", "name": "wheels", "path": [str(f) for f in wheels]},
+                        {"type": "tum", "name": "mocap", "path": [str(f) for f in mocap]}],
+            "factors": factors,
             "initializers": [{"type": "pose.interpolate", "robot": "robot", "stream": "mocap"}],
             "solver": {"type": "batch", "method": "lm"}, "output": {"plots": False}}
 
 
 def graph_calibration(session: Session, settings: dict = GRAPH):
     """(WheelParameters, their 1-sigma (r_R, r_L, A), the fusionkit RunResult) of the graph calibration
-    on all runs of `session`."""
+    on all runs of `session`, each run its own recording."""
     import tempfile
 
     import yaml
@@ -252,7 +290,7 @@ def graph_calibration(session: Session, settings: dict = GRAPH):
     from fusionkit import run as fusionkit_run
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        wheels, mocap, _ = write_session(session, folder)
+        wheels, mocap = write_recordings(session, folder)
         path = folder / "config.yaml"
         path.write_text(yaml.safe_dump(graph_config(wheels, mocap, settings), sort_keys=False))
         result = fusionkit_run(path)

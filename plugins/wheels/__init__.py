@@ -1,11 +1,12 @@
 """Built-in `wheels` plugin: differential-drive robots with wheel encoders, an optional passive wheel and a
-gyro -- the diff_drive robot model, per-wheel, gyro, no-sideways-motion and preintegrated odometry factors,
+gyro -- the diff_drive robot model, per-wheel, gyro, no-sideways-motion, preintegrated and long-horizon odometry factors,
 dead-reckoning initialization and the wheels.sim fault simulator (models: docs/models/wheels.md)."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
 from .baseline import BASELINES
 from .factors import FACTOR_TYPES
+from .horizon import FACTOR_TYPES as LONG_HORIZON
 from .initializers import INITIALIZERS
 from .model import DiffDriveModel
 from .simulator import SIMULATORS
@@ -13,7 +14,7 @@ from .simulator import SIMULATORS
 
 @hookimpl
 def register_factor_types():
-    return FACTOR_TYPES + BASELINES
+    return FACTOR_TYPES + LONG_HORIZON + BASELINES
 
 
 @hookimpl

@@ -47,6 +47,51 @@ def _chord_factor(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sinc(h / np.pi), dc
 
 
+def _arcs(left: np.ndarray, right: np.ndarray, r_l: float, r_r: float, axle: float):
+    """Each sample's forward travel d and heading change delta (rad), and their derivatives in (r_L, r_R, A)."""
+    d = 0.5 * (r_r * right + r_l * left)
+    turn = (r_r * right - r_l * left) / axle
+    d_d = np.column_stack([0.5 * left, 0.5 * right, np.zeros_like(left)])
+    d_turn = np.column_stack([-left / axle, right / axle, -turn / axle])
+    return d, d_d, turn, d_turn
+
+
+def _chords(d, d_d, turn, d_turn, psi, d_psi) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's chord (S, 2) in the frame its heading psi is measured in, and its derivative (S, 2, 3)."""
+    c, dc = _chord_factor(0.5 * turn)
+    chord, d_chord = d * c, c[:, None] * d_d + (d * dc)[:, None] * d_turn
+    m, d_m = psi + 0.5 * turn, d_psi + 0.5 * d_turn
+    u, u_perp = np.column_stack([np.cos(m), np.sin(m)]), np.column_stack([-np.sin(m), np.cos(m)])
+    step = chord[:, None] * u
+    d_step = u[:, :, None] * d_chord[:, None, :] + chord[:, None, None] * u_perp[:, :, None] * d_m[:, None, :]
+    return step, d_step
+
+
+@dataclass(frozen=True)
+class Reckoning:
+    """Dead reckoning from the identity pose over S samples: position (S + 1, 2), m, and heading (S + 1,),
+    rad, after each sample (row 0: the start), and their derivatives (S + 1, 2, 3) and (S + 1, 3) in
+    (r_L, r_R, A)."""
+
+    position: np.ndarray
+    heading: np.ndarray
+    d_position: np.ndarray
+    d_heading: np.ndarray
+
+
+def dead_reckon(left: np.ndarray, right: np.ndarray, theta) -> Reckoning:
+    """The exact composition of the samples' arcs (wheel angle increments left/right, rad) at intrinsics
+    theta = (r_L, r_R, A), m, with its analytic derivative."""
+    r_l, r_r, axle = (float(v) for v in theta)
+    d, d_d, turn, d_turn = _arcs(left, right, r_l, r_r, axle)
+    heading = np.concatenate([[0.0], np.cumsum(turn)])
+    d_heading = np.concatenate([np.zeros((1, 3)), np.cumsum(d_turn, axis=0)])
+    step, d_step = _chords(d, d_d, turn, d_turn, heading[:-1], d_heading[:-1])
+    position = np.concatenate([np.zeros((1, 2)), np.cumsum(step, axis=0)])
+    d_position = np.concatenate([np.zeros((1, 2, 3)), np.cumsum(d_step, axis=0)])
+    return Reckoning(position, heading, d_position, d_heading)
+
+
 def preintegrate(window: np.ndarray, left: np.ndarray, right: np.ndarray, dt: np.ndarray, nominal,
                  sigma: float, lateral_sigma: float) -> Windows:
     """Windows of samples: `window` (S,) the window index of each sample (0..F-1, non-decreasing, every
@@ -59,17 +104,9 @@ def preintegrate(window: np.ndarray, left: np.ndarray, right: np.ndarray, dt: np
         c = np.cumsum(x, axis=0) - x
         return c - c[starts][window]
 
-    d = 0.5 * (r_r * right + r_l * left)
-    turn = (r_r * right - r_l * left) / axle
-    d_d = np.column_stack([0.5 * left, 0.5 * right, np.zeros_like(left)])    # d d / d (r_L, r_R, A)
-    d_turn = np.column_stack([-left / axle, right / axle, -turn / axle])
+    d, d_d, turn, d_turn = _arcs(left, right, r_l, r_r, axle)
     psi, d_psi = before(turn), before(d_turn)
-    c, dc = _chord_factor(0.5 * turn)
-    chord, d_chord = d * c, c[:, None] * d_d + (d * dc)[:, None] * d_turn
-    m, d_m = psi + 0.5 * turn, d_psi + 0.5 * d_turn
-    u, u_perp = np.column_stack([np.cos(m), np.sin(m)]), np.column_stack([-np.sin(m), np.cos(m)])
-    step = chord[:, None] * u
-    d_step = u[:, :, None] * d_chord[:, None, :] + chord[:, None, None] * u_perp[:, :, None] * d_m[:, None, :]
+    step, d_step = _chords(d, d_d, turn, d_turn, psi, d_psi)
     p, d_p = np.add.reduceat(step, starts), np.add.reduceat(d_step, starts)
     heading, d_heading = np.add.reduceat(turn, starts), np.add.reduceat(d_turn, starts)
     cos_h, sin_h = np.cos(heading), np.sin(heading)

@@ -36,7 +36,8 @@ def test_every_entry_applies_or_refuses_the_robust_kernel(config):
                                                   "robust kernel"):
                 load_config(config, [setting])
             continue
-        robust = load_config(config, [setting])
+        scale = [f"factors.{i}.noise_scale=1.0"] if spec.data.get("noise_scale") == "estimate" else []
+        robust = load_config(config, [setting, *scale])  # `estimate` needs Gaussian noise: a fixed scale here
         ctx = BuildContext(robust, streams)
         entry = robust.factors[i]
         reg.get("factor_types", entry.type)().build(ctx, entry)

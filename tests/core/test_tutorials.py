@@ -203,7 +203,8 @@ def check_wheeled_robot(out: Path) -> None:
     final_version is on a par with the graph on this run; the camera calibrates the radii, axle and gyro
     within 3 sigma; the fixed-lag smoother follows the left radius's 1.2 mm wear; the stuck wheel is named
     (noise_understated naming its encoder, local_misfit at 7-9 s), the axle length left to its prior without the
-    camera (prior_only), and the fixed-lag run on the faulty data is rejected, as the tutorial says."""
+    camera (prior_only), and the fixed-lag run on the faulty data is rejected, as the tutorial says; the
+    systematic calibration (wheels.long_horizon) lands within 0.1 mm (radii) and 1 mm (axle)."""
     ate = {name: _report(out, f"wheels_{name}")["evaluation"]["trajectories"]["robot"]["ate_rmse_m"]
            for name in ("graph", "odometry", "final_version", "calibrated")}
     assert ate["graph"] < 0.1 and ate["odometry"] > 2 * ate["graph"]  # measured: 0.060, 0.185
@@ -227,6 +228,10 @@ def check_wheeled_robot(out: Path) -> None:
     assert lag["status"] == "rejected" and "incremental_fit" in [w["name"] for w in lag["warnings"]]
     change, sigma = map(float, (out / "wheels_drift_change.txt").read_text().split())
     assert abs(change + 0.0012) < 3 * sigma and sigma < 0.0005  # measured: -1.22 mm +- 0.31 mm
+    systematic = _report(out, "wheels_systematic")  # wheels.long_horizon: radii 0.04 mm, axle 0.05 mm off
+    errors = {name: ev["abs_error"][0] for name, ev in systematic["evaluation"]["parameters"]["robot"].items()}
+    assert errors["wheel_radius_left"] < 1e-4 and errors["wheel_radius_right"] < 1e-4 and errors["axle_length"] < 1e-3
+    assert [w["name"] for w in systematic["warnings"]] == ["noise_overstated"]  # its sigma is a weight
 
 
 def check_epuck(out: Path) -> None:
