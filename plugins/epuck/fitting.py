@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .irmodel import gaussian_sum
 
 CURVATURE = (None, np.log(100.0))  # w's upper bound: p2 = -(p1^2 / (4 LOG_A_ROOM) + exp(w)), c >= 0.1
 CANCELLATION = 1e4         # no term may exceed the data by more (terms that cancel are refused)
@@ -42,6 +43,9 @@ WIDTHS = (0.5, 1.5, 5.0, 30.0)          # start values of a new term's c (x-unit
 BEAM = 1                   # fits carried to the next number of terms
 FAR = (5.0, 30.0)                        # and of its b: the data's x, and this far below the smallest
 KINDS = {0: "straight", 1: "spin", 2: "turn"}
+VARIANCE_ROUNDS = 2        # refits of the variance weighted by the fitted variance
+ENVELOPE_GRID = 400        # points of the running minimum of a falling fit
+DROPOUT_SIGMAS = 3.0       # a 0 is a drop-out where the non-zero readings' mean is this many of their sigmas above 0
 
 
 @dataclass
@@ -68,9 +72,19 @@ class _Problem:
     (variable projection: a term's sign comes out of the linear solve); the best fits are then
     polished with every (A, p1, p2) free. A fit is a tuple (chi2, p1, p2, A, terms)."""
 
-    def __init__(self, x, y, se, positive_grid):
+    def __init__(self, x, y, se, positive_grid, falling: bool = False):
         self.x, self.y, self.se, self.grid = x, y, se, positive_grid
         self.xc = float(np.mean(x))
+        # falling: a fit is judged by its running minimum from min(x) (the proximity model irmodel.Bank uses), on a
+        # grid that holds the data's x
+        self.envelope_x = np.union1d(np.linspace(x.min(), x.max(), ENVELOPE_GRID), x) if falling else None
+
+    def curve(self, p1: np.ndarray, p2: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """The curve at the data's x: the Gaussian sum, or (falling) its running minimum from min(x)."""
+        if self.envelope_x is None:
+            return self.basis(p1, p2, self.x) @ A
+        low = np.minimum.accumulate(self.basis(p1, p2, self.envelope_x) @ A)
+        return low[np.searchsorted(self.envelope_x, self.x)]
 
     @staticmethod
     def slopes(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,7 +176,7 @@ class _Problem:
                 return None
             terms.append([float(np.sign(amp) * np.exp(log_a)), float(self.xc - a1 / (2.0 * a2)),
                           float(1.0 / np.sqrt(-a2))])
-        chi2 = float(np.sum(((self.basis(p1, p2, self.x) @ A - self.y) / self.se) ** 2))
+        chi2 = float(np.sum(((self.curve(p1, p2, A) - self.y) / self.se) ** 2))
         return chi2, p1, p2, A, terms
 
     def full_jacobian(self, p1: np.ndarray, p2: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -175,14 +189,16 @@ class _Problem:
 
 
 def fit_gaussian_sum(x: np.ndarray, y: np.ndarray, se: np.ndarray, max_terms: int = 3,
-                     positive: bool = False) -> CurveFit:
+                     positive: bool = False, falling: bool = False) -> CurveFit:
     """Fit y(x) +- se by Gaussian sums of 1..max_terms terms (3 parameters each, fewer than the points)
     and keep the one with the smallest BIC. Each number of terms starts from the BEAM best distinct fits
     with one term fewer, plus a new term centred at every other data point or far below them, in
     several widths (two terms: also a decay from far below with a bump at each data point).
-    `positive`: the curve must be > 0 between min(x) and max(x)."""
+    `positive`: the curve must be > 0 between min(x) and max(x). `falling` (x increasing): the fits are compared
+    (chi^2, BIC, residuals) by their running minimum from min(x), the non-rising mean irmodel.Bank makes of them, so
+    a sum that dips between two distances and rises again loses to one that does not."""
     x, y, se = (np.asarray(a, float) for a in (x, y, se))
-    problem = _Problem(x, y, se, np.linspace(x.min(), x.max(), 200) if positive else None)
+    problem = _Problem(x, y, se, np.linspace(x.min(), x.max(), 200) if positive else None, falling)
     centres = list(x[::2]) + [x.min() - f for f in FAR] + [x.max() + f for f in FAR]
     new = [problem.start(b, c) for b in centres for c in WIDTHS]
     candidates, fits, beam = {}, {}, [np.zeros(0)]
@@ -214,7 +230,7 @@ def fit_gaussian_sum(x: np.ndarray, y: np.ndarray, se: np.ndarray, max_terms: in
     U, sv, _ = np.linalg.svd(problem.full_jacobian(p1, p2, A), full_matrices=False)
     U = U[:, sv > 1e-12 * sv[0]]
     curve_sigma = se * np.sqrt(np.sum(U * U, axis=1))
-    residual = (y - problem.basis(p1, p2, x) @ A) / se
+    residual = (y - problem.curve(p1, p2, A)) / se
     return CurveFit(terms, chi2, len(x) - 3 * chosen, candidates, residual, curve_sigma)
 
 
@@ -240,19 +256,43 @@ class SensorFit:
     var: np.ndarray
     mean_fit: CurveFit
     var_fit: CurveFit
-    dropped: int = 0  # drop-outs left out (readings of 0 where the distance's median reading is not)
+    dropped: int = 0        # drop-outs left out of the curves (`dropouts`)
+    dropout: float = 0.0    # their probability: drop-outs per reading where they are told apart
+    saturation: float | None = None  # the reading the sensor clips at (`saturation_level`), if it does
+    saturated: int = 0      # distances left out of the curves: their median reading is the saturation
+    clipped: int = 0        # distances left out of the curves: from the first with a reading clipped at 0 on
 
 
-def dropouts(distance: np.ndarray, reading: np.ndarray, unit: float) -> np.ndarray:
-    """Which readings are drop-outs: exactly 0 at a distance whose median reading is not (a sensor that returns 0
-    mid-range now and then; where the median is 0 the zeros are the reading)."""
+def dropout_distances(distance: np.ndarray, reading: np.ndarray, unit: float) -> np.ndarray:
+    """Which readings lie at a distance where a 0 is a drop-out, not a weak reading: the distance's non-zero readings
+    (two or more) have a mean DROPOUT_SIGMAS of their standard deviations above 0 (there a sensor that returns
+    nothing now and then is told apart; where the signal is near 0 a 0 is a reading clipped at 0)."""
     x = np.round(np.asarray(distance, float) / unit, 9)
     out = np.zeros(len(x), bool)
     for v in np.unique(x):
         at = x == v
-        if np.median(reading[at]) > 0:
-            out |= at & (reading == 0)
+        signal = reading[at & (reading != 0)]
+        if len(signal) >= 2 and signal.mean() > DROPOUT_SIGMAS * signal.std(ddof=1):
+            out |= at
     return out
+
+
+def dropouts(distance: np.ndarray, reading: np.ndarray, unit: float) -> np.ndarray:
+    """Which readings are drop-outs: exactly 0 where dropout_distances tells a 0 apart from a weak reading."""
+    return dropout_distances(distance, reading, unit) & (np.asarray(reading) == 0)
+
+
+def saturation_level(distance: np.ndarray, reading: np.ndarray, unit: float) -> float | None:
+    """The reading a sensor clips at: its largest reading, when at some distance every reading (two or more) is
+    that value (an ADC at its top near the wall reads one value), else None."""
+    reading = np.asarray(reading, float)
+    top = float(reading.max())
+    x = np.round(np.asarray(distance, float) / unit, 9)
+    for v in np.unique(x[reading == top]):
+        at = reading[x == v]
+        if len(at) >= 2 and np.all(at == top):
+            return top
+    return None
 
 
 def distance_statistics(distance: np.ndarray, reading: np.ndarray, unit: float) -> tuple[np.ndarray, ...]:
@@ -266,19 +306,75 @@ def distance_statistics(distance: np.ndarray, reading: np.ndarray, unit: float) 
 
 
 def fit_sensor(distance: np.ndarray, reading: np.ndarray, unit: float = 0.01, max_terms: int = 3) -> SensorFit:
-    """Mean and variance models of one sensor from its readings at known distances (m); drop-outs (`dropouts`)
-    are left out of both and counted."""
-    dropped = dropouts(distance, reading, unit)
-    distance, reading = np.asarray(distance)[~dropped], np.asarray(reading)[~dropped]
+    """Mean and variance models of one sensor from its readings at known distances (m): drop-outs (`dropouts`) left
+    out of both, their probability estimated; distances read at the sensor's saturation (`saturation_level`) left
+    out of both (they say only "at least that"), and the distances from the first with a reading clipped at 0 (not a
+    drop-out) on (only "at most": the signal is weak there): the models hold between the first and last distance
+    fitted (`x`), readings outside are censored; the mean judged as the non-rising running minimum the model uses
+    (`fit_gaussian_sum`'s `falling`); a sample variance no smaller than an integer
+    reading's quantization (1/12 count^2) where the readings are counts (a saturated sensor reads one value)."""
+    reading = np.asarray(reading, float)
+    eligible = dropout_distances(distance, reading, unit)
+    dropped = eligible & (reading == 0)
+    probability = float(dropped.sum() / eligible.sum()) if eligible.any() else 0.0
+    distance, reading = np.asarray(distance)[~dropped], reading[~dropped]
+    saturation = saturation_level(distance, reading, unit)
     x, count, mean, var = distance_statistics(distance, reading, unit)
     if np.any(count < 2):
         raise ValueError(f"each distance needs two or more readings; {np.sum(count < 2)} distance(s) have one")
+    xs = np.round(np.asarray(distance, float) / unit, 9)
+    # a distance read at the saturation says only "at least that", one with readings clipped at 0 (a weak signal)
+    # only "at most": neither gives a mean or a variance
+    flat = np.array([saturation is not None and np.median(reading[xs == v]) >= saturation for v in x])
+    weak = np.array([np.any(reading[xs == v] == 0) for v in x])
+    weak |= np.cumsum(weak) > 0  # from the first such distance on: the range ends where the signal gets weak
+    x, count, mean, var = (a[~flat & ~weak] for a in (x, count, mean, var))
     if len(x) < 4:
-        raise ValueError(f"{len(x)} distinct distances: a one-term fit needs 4 or more")
-    var = np.maximum(var, 1e-12)
-    mean_fit = fit_gaussian_sum(x, mean, np.sqrt(var / count), max_terms)
-    var_fit = fit_gaussian_sum(x, var, var * np.sqrt(2.0 / (count - 1)), max_terms, positive=True)
-    return SensorFit(x, count, mean, var, mean_fit, var_fit, int(dropped.sum()))
+        raise ValueError(f"{len(x)} distinct distances{' below saturation' if flat.any() else ''}: a one-term fit "
+                         "needs 4 or more")
+    var = np.maximum(var, 1.0 / 12.0 if np.all(reading == np.round(reading)) else 1e-12)
+    mean_fit = fit_gaussian_sum(x, mean, np.sqrt(var / count), max_terms, falling=True)
+    # what a new reading varies by about the fitted mean: its own variance, the fitted mean's uncertainty, and the
+    # mean's misfit beyond its standard error
+    misfit = np.maximum((mean_fit.residual_sigmas ** 2 - 1.0) * var / count, 0.0)
+    target = var + mean_fit.curve_sigma ** 2 + misfit
+    var_fit = fit_gaussian_sum(x, target, var * np.sqrt(2.0 / (count - 1)), max_terms, positive=True)
+    for _ in range(VARIANCE_ROUNDS):  # weights from the fitted variance, not the sample's own (which favour low ones)
+        fitted = np.maximum(gaussian_sum(np.asarray(var_fit.terms, float)[None], x[:, None])[0][:, 0], var.min())
+        var_fit = fit_gaussian_sum(x, target, fitted * np.sqrt(2.0 / (count - 1)), max_terms, positive=True)
+    return SensorFit(x, count, mean, var, mean_fit, var_fit, int(dropped.sum()), probability, saturation,
+                     int(flat.sum()), int(weak.sum()))
+
+
+def sensor_bank(model: dict, unit: float, ir_range) -> "Bank":
+    """A Bank of one sensor from its description entry (mean, variance, dropout, saturation) on ir_range (m)."""
+    from .irmodel import Bank
+    return Bank([model["mean"]], [model["variance"]], unit, ir_range[0], ir_range[1], [model.get("dropout", 0.0)],
+                [model.get("saturation")])
+
+
+def coverage(bank, distance: np.ndarray, reading: np.ndarray, sigmas=(1.0, 2.0, 3.0)) -> np.ndarray:
+    """Percent of readings inside 1, 2, 3 sigma of one sensor's model (`bank`, a Bank of one sensor) at known
+    distances (m), drop-outs included: a reading's probability integral transform F(z) under the model, readings
+    clipped at 0 (F(z) = pi + (1 - pi) Phi((z - m) / sigma) for z >= 0: a reading of 0 has the point mass F(0), its
+    transform the interval 0 .. F(0), counted by the share of it inside; a reading at the sensor's saturation the
+    interval F(sat) .. 1); k sigma is the central interval
+    Phi(-k) .. Phi(k) of the transform, where a Gaussian reading within k sigma falls."""
+    from scipy.special import ndtr
+    ev = bank.evaluate(np.asarray(distance, float), np.zeros(len(distance), int))
+    sigma, pi, top = np.sqrt(ev.var), float(bank.dropout[0]), float(bank.saturation[0])
+    reading = np.asarray(reading, float)
+    cdf = pi + (1.0 - pi) * ndtr((reading - ev.mean) / sigma)
+    lo = np.where(reading == 0, 0.0, cdf)
+    hi = np.where(reading >= top, 1.0, cdf)
+    out = []
+    for k in sigmas:
+        a, b = ndtr(-k), ndtr(k)
+        width = hi - lo
+        share = np.where(width > 0, np.clip(np.minimum(hi, b) - np.maximum(lo, a), 0.0, None) / np.where(width > 0, width, 1.0),
+                         (lo > a) & (lo < b))
+        out.append(100.0 * float(np.mean(share)))
+    return np.array(out)
 
 
 @dataclass

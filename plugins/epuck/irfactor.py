@@ -15,7 +15,9 @@ divides by the sigma at the reading's inverse-lookup distance, fixed when the gr
 reading below the far threshold F_mean(d_max) (nothing within range) or above the near one (closer
 than d_min) is censored: it says only that the reading fell on that side of the threshold, with
 probability Phi(-u), u = sign (g F_mean(d) + o - threshold) / sqrt(F_var(d)) (sign +1 far, -1 near);
-its residual e = sqrt(-2 log Phi(-u)) makes e^2 / 2 exactly that negative log-likelihood.
+its residual e = sqrt(-2 log Phi(-u)) makes e^2 / 2 exactly that negative log-likelihood. A sensor with a
+drop-out probability pi (`dropout:` in the description: it returns 0 now and then whatever the distance) reads 0
+with probability pi + (1 - pi) Phi(-u): a reading of 0 then costs at most -log pi, wherever the wall is.
 """
 
 from __future__ import annotations
@@ -32,10 +34,21 @@ NOISE_MODES = ("full", "whitened", "at_reading")
 HALF_LOG_2PI = 0.5 * np.log(2.0 * np.pi)
 
 
-def censored_residual(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """e = sqrt(-2 log Phi(-u)) and de/du, stable for any u (e -> 0 as u -> -inf)."""
+def censored_residual(u: np.ndarray, dropout=None) -> tuple[np.ndarray, np.ndarray]:
+    """e = sqrt(-2 log Phi(-u)) and de/du, stable for any u (e -> 0 as u -> -inf). With `dropout` pi (per u,
+    > 0 where a reading may be a drop-out): e = sqrt(-2 log(pi + (1 - pi) Phi(-u))), bounded by
+    sqrt(-2 log pi)."""
     from scipy.special import log_ndtr
     u = np.asarray(u, float)
+    if dropout is not None and np.any(dropout > 0):
+        e, de = censored_residual(u)
+        pi = np.broadcast_to(np.asarray(dropout, float), u.shape)
+        mixed = pi > 0
+        p = pi + (1.0 - pi) * np.exp(log_ndtr(-u))
+        e_mix = np.sqrt(np.maximum(-2.0 * np.log(p), 0.0))
+        pdf = np.exp(-0.5 * u * u - HALF_LOG_2PI)
+        de_mix = (1.0 - pi) * pdf / (p * np.maximum(e_mix, 1e-12))
+        return np.where(mixed, e_mix, e), np.where(mixed, de_mix, de)
     log_pdf = -0.5 * u * u - HALF_LOG_2PI
     lc = log_ndtr(-u)                      # log Phi(-u) <= 0
     c = -lc
@@ -135,7 +148,8 @@ class IrModelContext:
         de2 = dvar / (2.0 * var * e2)
         sign = np.where(readings.kind == FAR, 1.0, -1.0)
         u = np.where(inside, 0.0, sign * (pred - readings.threshold) / sigma)
-        ec, dec = censored_residual(u)
+        dropout = np.where((readings.kind == FAR) & (readings.z == 0.0), self.bank.dropout[s], 0.0)
+        ec, dec = censored_residual(u, dropout)
         dec_dd = dec * (sign * gain * dmu / sigma - u * dvar / (2.0 * var))
         zero = np.zeros_like(e1)
         return Quantities(np.stack([e1, e2, ec]), np.stack([de1, de2, dec_dd]),

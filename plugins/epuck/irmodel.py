@@ -5,7 +5,10 @@ Each is a Gaussian sum in x = d / unit (the published fits use unit = 1 cm):
 
     F(x) = sum_j a_j exp(-((x - b_j) / c_j)^2)
 
-fitted on [d_min, d_max]. Outside that range the functions are continued so that an estimate which
+fitted on [d_min, d_max]. A proximity reading does not rise with distance: the mean is the sum's running
+minimum from d_min (where a fitted sum rises -- IR6's published fit by 71 counts between 0.5 and 0.64 cm --
+the mean stays flat until the sum falls below it again; at the fit's distances, where the sum follows the
+measured means down, the two agree). Outside that range the functions are continued so that an estimate which
 wanders out of it still feels a gradient: the mean exponentially beyond d_max (positive and C1: the
 value and slope at d_max; it decays to 0 at infinity) and linearly below d_min (C1); the variance is
 held at its end values. Readings are raw counts. All functions take the distances of many sensors at
@@ -51,30 +54,53 @@ class Evaluation:
 
 class Bank:
     """The sensor models of several IR sensors: mean and variance Gaussian sums per sensor, the distance
-    unit of their x (m), and the range [d_min, d_max] (m) they were fitted on."""
+    unit of their x (m), the range [d_min, d_max] (m) they were fitted on, each sensor's drop-out
+    probability (a reading of exactly 0 whatever the distance; default 0) and the reading it saturates at
+    (default none)."""
 
-    def __init__(self, mean_terms: list, var_terms: list, unit: float, d_min: float, d_max: float):
+    def __init__(self, mean_terms: list, var_terms: list, unit: float, d_min: float, d_max: float,
+                 dropout=None, saturation=None):
         self.mean_terms, self.var_terms = stack_terms(mean_terms), stack_terms(var_terms)
+        size = len(self.mean_terms)
+        self.dropout = np.zeros(size) if dropout is None else np.asarray(dropout, float)
+        self.saturation = np.full(size, np.inf) if saturation is None else np.array(
+            [np.inf if v is None else float(v) for v in saturation])
         self.unit, self.d_min, self.d_max = float(unit), float(d_min), float(d_max)
         self.size = len(self.mean_terms)
+        grid = np.linspace(d_min, d_max, GRID)
+        self.grid = grid
+        sums = self._sum_inside(np.repeat(grid[:, None], self.size, 1))[0]
+        self.sum_rise = (sums - np.minimum.accumulate(sums, axis=0)).max(axis=0)  # counts the envelope flattens
+        self.grid_mean = np.minimum.accumulate(sums, axis=0)                      # (GRID, S), non-increasing
         ends = np.array([[d_min] * self.size, [d_max] * self.size])
         m, dm = self._mean_inside(ends)
         v, _ = self._var_inside(ends)
         self.mean_lo, self.slope_lo, self.mean_hi = m[0], dm[0], m[1]
-        self.rate_hi = dm[1] / m[1]  # 1/m: the exponential continuation's rate (negative)
+        self.rate_hi = np.minimum(dm[1], 0.0) / m[1]  # 1/m: the exponential continuation's rate (<= 0)
         self.var_lo, self.var_hi = v[0], v[1]
-        grid = np.linspace(d_min, d_max, GRID)
-        self.grid = grid
-        self.grid_mean = self._mean_inside(np.repeat(grid[:, None], self.size, 1))[0]   # (GRID, S)
         self.grid_var = self._var_inside(np.repeat(grid[:, None], self.size, 1))[0]
         self.var_floor = 0.9 * self.grid_var.min(axis=0)  # below every variance the model gives
-        self.peak = self.grid_mean.argmax(axis=0)           # the mean decreases beyond its peak
-        self.near_threshold = self.grid_mean.max(axis=0)    # a reading above: closer than d_min (or saturated)
+        self.peak = np.zeros(self.size, int)              # the mean is largest at d_min and never rises
+        self.near_threshold = np.minimum(self.grid_mean[0], self.saturation)  # a reading above: closer than d_min,
+        # or at the sensor's saturation
         self.far_threshold = self.mean_hi.copy()            # a reading below: nothing within d_max
 
-    def _mean_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    def _sum_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+        """The mean's Gaussian sum and its derivative (per m) at d inside the range."""
         f, df = gaussian_sum(self.mean_terms[sensor], d / self.unit)
         return f, df / self.unit
+
+    def _mean_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+        """The mean at d inside the range: the Gaussian sum's running minimum from d_min (the smallest of the sum at
+        d and its grid envelope at the grid point below d), its derivative 0 where the envelope holds it flat."""
+        f, df = self._sum_inside(d, sensor)
+        if not hasattr(self, "grid_mean"):
+            return f, df
+        j = np.clip(((d - self.d_min) / (self.d_max - self.d_min) * (GRID - 1)).astype(int), 0, GRID - 1)
+        columns = np.arange(self.size)[sensor] if isinstance(sensor, slice) else np.asarray(sensor)
+        before = self.grid_mean[j, np.broadcast_to(columns, np.shape(d))]
+        flat = (before < f) | (df > 0)
+        return np.minimum(before, f), np.where(flat, 0.0, df)
 
     def _var_inside(self, d: np.ndarray, sensor=slice(None)) -> tuple[np.ndarray, np.ndarray]:
         f, df = gaussian_sum(self.var_terms[sensor], d / self.unit)
@@ -90,9 +116,9 @@ class Bank:
         v, dv = self._var_inside(inside, s)
         below, above = d < self.d_min, d > self.d_max
         mean_hi, rate_hi = self.mean_hi[s], self.rate_hi[s]
-        with np.errstate(invalid="ignore", over="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # d = inf: nothing along the axis
             far = np.where(np.isfinite(d), mean_hi * np.exp(rate_hi * (d - self.d_max)), 0.0)
-        m = np.where(below, self.mean_lo[s] + self.slope_lo[s] * (d - self.d_min), np.where(above, far, m))
+            m = np.where(below, self.mean_lo[s] + self.slope_lo[s] * (d - self.d_min), np.where(above, far, m))
         dm = np.where(below, self.slope_lo[s], np.where(above, rate_hi * far, dm))
         v = np.where(below, self.var_lo[s], np.where(above, self.var_hi[s], v))
         dv = np.where(below | above, 0.0, dv)

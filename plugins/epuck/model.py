@@ -14,6 +14,8 @@
         mount: {translation: [0.030, -0.010, 0.033], rotation_rpy: [0, 0, -0.3007]}   # the axis: yaw
         mean: [[a, b, c], ...]      # mean reading (counts) = sum a exp(-((x - b) / c)^2)
         variance: [[a, b, c], ...]  # its variance (counts^2), the same form
+        dropout: 0.02               # optional: probability of a reading of 0 whatever the distance
+        saturation: 4095            # optional: the reading it clips at (readings there are censored: "at least")
 
 `wall_map`: a known map, walls as segments and closed polygons (m) --
 
@@ -58,7 +60,8 @@ def ir_layout_from_data(data: dict, names: list[str] | None = None) -> IrLayout:
     angles = np.array([sensors[n].get("mount", {}).get("rotation_rpy", [0.0, 0.0, 0.0])[2] for n in names], float)
     lo, hi = data["ir_range"]
     bank = Bank([sensors[n]["mean"] for n in names], [sensors[n]["variance"] for n in names],
-                data["ir_distance_unit"], lo, hi)
+                data["ir_distance_unit"], lo, hi, [sensors[n].get("dropout", 0.0) for n in names],
+                [sensors[n].get("saturation") for n in names])
     return IrLayout(names, mounts.reshape(-1, 2), angles, bank)
 
 
@@ -75,7 +78,8 @@ def ir_layout(desc: RobotDescription, names: list[str] | None = None) -> IrLayou
     angles = np.array([s.mount.rotation().yaw() for s in sensors], float)
     lo, hi = desc.extra["ir_range"]
     bank = Bank([s.extra["mean"] for s in sensors], [s.extra["variance"] for s in sensors],
-                desc.extra["ir_distance_unit"], lo, hi)
+                desc.extra["ir_distance_unit"], lo, hi, [s.extra.get("dropout", 0.0) for s in sensors],
+                [s.extra.get("saturation") for s in sensors])
     return IrLayout(names, mounts, angles, bank)
 
 
@@ -129,10 +133,17 @@ class EpuckModel(RobotModel):
     def _check_sensor(desc: RobotDescription, name: str) -> None:
         extra = desc.sensors[name].extra
         path = ("sensors", name)
-        unknown = sorted(set(extra) - {"mean", "variance"})
+        unknown = sorted(set(extra) - {"mean", "variance", "dropout", "saturation"})
         if unknown:
             raise desc.error(path + (unknown[0],), f"unknown key for an {IR_TYPE} sensor; accepted: type, frame, "
-                             "mount, mean, variance")
+                             "mount, mean, variance, dropout, saturation")
+        top = extra.get("saturation", 1.0)
+        if isinstance(top, bool) or not isinstance(top, (int, float)) or not top > 0:
+            raise desc.error(path + ("saturation",), f"{top!r}: expected the reading (counts, > 0) the sensor clips at")
+        p = extra.get("dropout", 0.0)
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p < 1.0:
+            raise desc.error(path + ("dropout",), f"{p!r}: expected a probability in [0, 1) (the fraction of readings "
+                             "that fall to 0 whatever the distance)")
         for key in ("mean", "variance"):
             if key not in extra:
                 raise desc.error(path, f"an {IR_TYPE} sensor needs `{key}:` (Gaussian-sum terms [[a, b, c], ...])")

@@ -97,7 +97,7 @@ def test_fit_ir_reads_readings_without_time_and_touching_the_wall_and_records_th
     ir = tmp_path / "backing_away.csv"
     ir.write_text("distance,sensor,reading\n" + "".join(f"{a:.17g},0,{b:.17g}\n" for a, b in zip(d, z)))
     assert main(["epuck-fit-ir", str(ir), "--out", str(tmp_path / "ir")]) == 0
-    assert "at 0 .. 0.07 m (ir_range)" in capsys.readouterr().out
+    assert "ir_range 0 .. 0.07 m" in capsys.readouterr().out
     fragment = yaml.safe_load((tmp_path / "ir" / "ir_models.yaml").read_text())
     assert fragment["ir_range"] == [0.0, 0.07] and fragment["ir_distance_unit"] == 0.01
     sensor = {"type": "ir_proximity", "frame": "base", **fragment["sensors"]["ir0"]}
