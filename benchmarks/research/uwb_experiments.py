@@ -162,3 +162,41 @@ def labyrinth(folder: Path) -> dict:
     err = pos[usable] - truth[usable, 1:]
     out["multilateration"] = float(np.sqrt(np.mean(np.sum(err ** 2, axis=1))))
     return out
+
+
+# The sparse far regime (issue: a vehicle at walking speed ranging to a few far beacons one at a time): uwb.sim's
+# field site, one range per epoch at 2 Hz to four beacons 10-70 m from the path, and a right wheel reading 3 % long.
+FIELD = {"site": "field", "round_robin": True, "rate": 2.0, "duration": 240.0, "wheel_scale_error": 0.03,
+         "bias_model": "constant"}
+FIELD_STARTS = ("defaults", "good start", "per-epoch multilateration")
+
+
+def field_starts(folder: Path, seed: int, params: dict = FIELD) -> dict:
+    """The field regime (seed) written to `folder`, solved from three starts: the shipped config's defaults
+    (uwb.multilateration, which starts on the odometry aligned to the ranges when ranging cannot place the tag epoch
+    by epoch), a good start (the true path) and per-epoch multilateration alone (the alignment switched off).
+    Returns {start: RunResult} (rejected runs kept)."""
+    from fusionkit.simulate import write_dataset
+    from fusionkit.sweep import override_text
+    from fusionkit_plugins.uwb import initializers
+    write_dataset(SCENARIO, folder, [f"{k}={override_text(v)}" for k, v in params.items()], seed=seed)
+    config = yaml.safe_load((folder / "config.yaml").read_text())
+
+    def solve(name: str, edit=None):
+        data = yaml.safe_load(yaml.safe_dump(config))
+        if edit:
+            edit(data)
+        (folder / f"{name}.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
+        return estimate(load_config(folder / f"{name}.yaml"), keep_rejected=True)
+
+    def from_truth(data):
+        data["sources"].append({"type": "tum", "name": "start", "path": "truth/a.tum"})
+        data["initializers"] = [{"type": "pose.interpolate", "robot": "a", "stream": "start"}]
+    out = {"defaults": solve("defaults"), "good start": solve("good_start", from_truth)}
+    aligned = initializers.Multilateration._try_odometry
+    initializers.Multilateration._try_odometry = lambda *args, **kwargs: None
+    try:
+        out["per-epoch multilateration"] = solve("multilateration")
+    finally:
+        initializers.Multilateration._try_odometry = aligned
+    return out

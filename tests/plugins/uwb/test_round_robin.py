@@ -49,9 +49,8 @@ def test_the_field_site_ranges_one_far_beacon_at_a_time_at_walking_speed_with_dr
     """`site: field` (the regime of a vehicle ranging to far beacons one at a time): four beacons 10-70 m from the
     path, about 1 m/s, one range per epoch at 2 Hz, and a right wheel reading 3 % long."""
     from fusionkit.pipeline import read_sources
-    params = {"site": "field", "round_robin": True, "rate": 2.0, "duration": 240.0, "wheel_scale_error": 0.03,
-              "bias_model": "constant"}
-    with simulated_config("uwb.sim", params, seed=1) as config:
+    from research.uwb_experiments import FIELD
+    with simulated_config("uwb.sim", FIELD, seed=1) as config:
         streams, truth = read_sources(config)
     pose = truth.trajectories["a"].pose_array()
     speed = np.linalg.norm(np.diff(pose[:, :2], axis=0), axis=1) * 2.0
@@ -88,36 +87,16 @@ def test_a_dead_reckoned_path_is_placed_where_the_ranges_put_it_despite_outliers
     assert np.max(np.abs(np.angle(np.exp(1j * (placed[:, 2] - truth[:, 2]))))) < 5e-3
 
 
-FIELD = {"site": "field", "round_robin": True, "rate": 2.0, "duration": 240.0, "wheel_scale_error": 0.03,
-         "bias_model": "constant"}
-
-
-def _run(folder, start_from_truth: bool = False):
-    import yaml
-    from fusionkit.config.loader import load_config
-    config = yaml.safe_load((folder / "config.yaml").read_text())
-    if start_from_truth:
-        config["sources"].append({"type": "tum", "name": "start", "path": "truth/a.tum"})
-        config["initializers"] = [{"type": "pose.interpolate", "robot": "a", "stream": "start"}]
-    (folder / "run.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
-    return estimate(load_config(folder / "run.yaml"), keep_rejected=True)
-
-
 @pytest.mark.slow
-def test_far_round_robin_ranging_starts_on_the_aligned_odometry_and_ends_near_the_good_start_solve(tmp_path,
-                                                                                                    monkeypatch):
+def test_far_round_robin_ranging_starts_on_the_aligned_odometry_and_ends_near_the_good_start_solve(tmp_path):
     """The field regime (2 Hz round-robin to beacons 10-70 m away, 3 % odometry drift, seed 1): per-epoch
     multilateration alone starts the solve where it ends at chi2/dof 107 and 0.38 m; the dead-reckoned path aligned
     piece by piece is chosen automatically (a note says so) and ends within 1.5x of the solve started from the truth
     (ATE 0.29 against 0.27 m; measured). The unmodelled drift leaves chi2/dof above the gate in every case: the
     run is rejected, and no model error is diagnosed from it."""
-    from fusionkit.simulate import write_dataset
-    from fusionkit.sweep import override_text
-    from fusionkit_plugins.uwb import initializers
-    write_dataset("uwb.sim", tmp_path, [f"{k}={override_text(v)}" for k, v in FIELD.items()], seed=1)
-    good, aligned = _run(tmp_path, start_from_truth=True), _run(tmp_path)
-    monkeypatch.setattr(initializers.Multilateration, "_try_odometry", lambda *args, **kwargs: None)
-    ranges_only = _run(tmp_path)
+    from research.uwb_experiments import field_starts
+    runs = field_starts(tmp_path, seed=1)
+    good, aligned, ranges_only = (runs[k] for k in ("good start", "defaults", "per-epoch multilateration"))
     ate = {name: r.evaluation["trajectories"]["a"]["ate_rmse_m"]
            for name, r in (("good", good), ("aligned", aligned), ("ranges", ranges_only))}
     assert any("starts on its odometry's dead-reckoned path aligned to the ranges" in n for n in aligned.notes)
