@@ -38,6 +38,7 @@ def fitted_bank(fit, unit: float = 0.01, dropout: bool = True) -> Bank:
     return sensor_bank(model, unit, (fit.x[0] * unit, fit.x[-1] * unit))
 
 
+@pytest.mark.slow
 def test_fit_finds_saturation_dropouts_and_the_weak_end_and_its_mean_never_rises():
     """Three runs: measured saturation 3500 (the nearest distance left out), drop-out probability 0.071 (14 of 198 readings; truth 0.05),
     the fitted range 0.2 .. 4.2 cm (the first distance with a reading clipped at 0 ends it), mean chi2/dof 0.62."""
@@ -92,6 +93,7 @@ def test_coverage_of_the_true_model_is_68_95_997():
     assert np.all(np.abs(inside - [68.3, 95.4, 99.7]) < 2), inside
 
 
+@pytest.mark.slow
 def test_fit_ir_writes_dropout_saturation_and_range_and_prints_held_out_coverage(tmp_path, capsys):
     rng = np.random.default_rng(0)
     files = []
