@@ -117,6 +117,19 @@ def held_out(session, fit) -> tuple[float, float]:
     return max(along), max(final)
 
 
+def graph_held_out(session, settings: dict) -> dict:
+    """The graph calibration with `settings` left one run out (held_out): the largest held-out max e_d and final
+    error, and the range of chi2/dof over the five-run fits."""
+    chi2 = []
+
+    def fit(runs):
+        params, _, result = graph_calibration(runs, settings)
+        chi2.append(result.solution.chi2_per_dof)
+        return params
+    along, final = held_out(session, fit)
+    return {"held_out_max_e_d": along, "held_out_max_final": final, "chi2_per_dof": (min(chi2), max(chi2))}
+
+
 def leave_one_run_out(sessions) -> tuple[str, dict]:
     """Per session: each run dead-reckoned with the parameters calibrated on the other runs; the measures
     over those held-out runs (max e_d along any path, largest final error) beside the in-sample ones. UMBmark
@@ -148,16 +161,10 @@ def objectives(sessions) -> tuple[str, dict]:
     for label, settings in OBJECTIVES.items():
         cells = []
         for name, session in sessions.items():
-            chi2 = []
-
-            def fit(runs, settings=settings, chi2=chi2):
-                params, _, result = graph_calibration(runs, settings)
-                chi2.append(result.solution.chi2_per_dof)
-                return params
-            along, final = held_out(session, fit)
-            raw[(label, SHORT[name])] = {"held_out_max_e_d": along, "held_out_max_final": final,
-                                         "chi2_per_dof": (min(chi2), max(chi2))}
-            cells += [f"{along:.4f}", f"{final:.4f}", f"{min(chi2):.2g}-{max(chi2):.2g}"]
+            out = raw[(label, SHORT[name])] = graph_held_out(session, settings)
+            chi2 = out["chi2_per_dof"]
+            cells += [f"{out['held_out_max_e_d']:.4f}", f"{out['held_out_max_final']:.4f}",
+                      f"{chi2[0]:.2g}-{chi2[1]:.2g}"]
         rows.append([label, *cells])
     cells = []
     for name, session in sessions.items():
@@ -216,16 +223,9 @@ def graph_noise_held_out(sessions, quick: bool) -> tuple[str, dict]:
     for label, settings in variants:
         cells = []
         for name, session in sessions.items():
-            chi2 = []
-
-            def fit(runs, settings=settings, chi2=chi2):
-                params, _, result = graph_calibration(runs, settings)
-                chi2.append(result.solution.chi2_per_dof)
-                return params
-            along, final = held_out(session, fit)
-            raw[(label, SHORT[name])] = {"held_out_max_e_d": along, "held_out_max_final": final,
-                                         "chi2_per_dof": (min(chi2), max(chi2))}
-            cells += [f"{min(chi2):.2f}-{max(chi2):.2f}", f"{along:.4f}", f"{final:.4f}"]
+            out = raw[(label, SHORT[name])] = graph_held_out(session, settings)
+            chi2 = out["chi2_per_dof"]
+            cells += [f"{chi2[0]:.2f}-{chi2[1]:.2f}", f"{out['held_out_max_e_d']:.4f}", f"{out['held_out_max_final']:.4f}"]
         rows.append([label, *cells])
     head = ["wheel_sigma (m/sqrt(s))", "circ chi2/dof", "held out max e_d", "max final", "squares chi2/dof",
             "held out max e_d", "max final"]

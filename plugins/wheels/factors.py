@@ -79,6 +79,14 @@ def intervals(ctx, spec: Spec, stream=None) -> np.ndarray:
     return kept
 
 
+def drive_stream_intervals(ctx, spec: Spec):
+    """(robot, its model.DiffDrive, the entry's stream, the robot's state set, the state intervals inside the stream:
+    `intervals`) of a wheels entry."""
+    robot = spec["robot"]
+    stream = ctx.stream(spec["stream"])
+    return robot, drive_of(ctx.robot(robot)), stream, ctx.state_set(robot, spec), intervals(ctx, spec, stream)
+
+
 def parameter_key(ctx, spec: Spec, name: str, k: int) -> int:
     """Key of an intrinsic for the interval that starts at state k: a time-varying parameter is read at the
     last multiple of `parameter_every` (parameter.random_walk's `every`) at or before k."""
@@ -434,11 +442,7 @@ class Preintegrated(FactorType):
     def build(self, ctx, spec: Spec) -> None:
         """sigma: m/sqrt(s) of each wheel's travel; lateral_sigma: m/sqrt(s) of sideways slip (absent:
         sigma). Preintegrated at the description's nominal intrinsics."""
-        robot = spec["robot"]
-        drive = drive_of(ctx.robot(robot))
-        stream = ctx.stream(spec["stream"])
-        states = ctx.state_set(robot, spec)
-        ks = intervals(ctx, spec, stream)
+        robot, drive, stream, states, ks = drive_stream_intervals(ctx, spec)
         if len(ks) == 0:
             return
         bounds, window = sample_windows(stream.t, states.t, ks)

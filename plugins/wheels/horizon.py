@@ -22,7 +22,7 @@ import numpy as np
 
 from fusionkit.api import FactorExample, FactorType, Spec, gaussian
 
-from .factors import NAME, SIGMA, check_drive_entry, intervals, require_wheels
+from .factors import NAME, SIGMA, check_drive_entry, drive_stream_intervals, require_wheels
 from .kinematics import driven_twist, increments, wheel_column
 from .model import AXLE, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .preintegration import dead_reckon
@@ -147,11 +147,7 @@ class LongHorizon(FactorType):
         travel (at the description's intrinsics) between checkpoints (absent: every state); anchors: every_checkpoint
         (windows from each checkpoint: every horizon at once) or recording_start (from each recording's start
         only: OptiOdom's objective as published)."""
-        robot = spec["robot"]
-        drive = drive_of(ctx.robot(robot))
-        stream = ctx.stream(spec["stream"])
-        states = ctx.state_set(robot, spec)
-        ks = intervals(ctx, spec, stream)
+        robot, drive, stream, states, ks = drive_stream_intervals(ctx, spec)
         if len(ks) == 0:
             return
         usable = np.union1d(ks - 1, ks)
