@@ -100,7 +100,7 @@ OBJECTIVES = {
     "long horizon, every checkpoint, windows up to 20 s": {**LONG_HORIZON, "horizon": 20.0, "mocap_scale": None},
     "long horizon, every checkpoint, whole runs": {**LONG_HORIZON, "mocap_scale": None},
     "long horizon, every checkpoint, whole runs, motion capture noise_scale: estimate (documented)": LONG_HORIZON,
-    "increments + long horizon (documented)": {**LONG_HORIZON, "objective": "increments+long_horizon",
+    "increments + the documented long horizon": {**LONG_HORIZON, "objective": "increments+long_horizon",
                                                "wheel_sigma": INCREMENTS["wheel_sigma"]},
 }
 
