@@ -104,7 +104,7 @@ class ArmMeasurement(FactorType):
         return a.state, a.row
 
     @abstractmethod
-    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+    def measured(self, stream, rows: np.ndarray, spec: Spec) -> np.ndarray:
         """What EntryEvaluator compares with, for the stream rows of the samples."""
 
     def build(self, ctx, spec: Spec) -> None:
@@ -117,7 +117,8 @@ class ArmMeasurement(FactorType):
         states = ks.reshape(len(ks), -1)  # relative: pairs; the parameters are those of the later state
         keys = [[ctx.state_key(robot, k) for k in pair] + parameter_keys(ctx, robot, variables, pair[-1])
                 for pair in states.tolist()]
-        evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows), keys)
+        evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows, spec),
+                                   keys)
         for i, (pair, key_list) in enumerate(zip(states.tolist(), keys)):
             ctx.add(marker_factor(noise, key_list, evaluator, i), spec, ctx.state_time(robot, pair[-1]))
 
@@ -145,7 +146,7 @@ class ToolPose(ArmMeasurement):
         check_arm_entry(spec, scope)
         scope.require_columns(spec, "stream", POSE_COLUMNS)
 
-    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+    def measured(self, stream, rows: np.ndarray, spec: Spec) -> np.ndarray:
         return lie.inverse(pose_matrices(stream.pose_array()[rows]))
 
     @classmethod
@@ -160,22 +161,27 @@ class ToolPose(ArmMeasurement):
 
 class ToolPosition(ArmMeasurement):
     name = "arm.tool_position"
-    summary = "laser tracker: the marker's position (x, y, z columns, m) in the measurement frame (serial_arm)"
+    summary = ("laser tracker: the marker's position (m) in the measurement frame, from the stream's x, y, z columns "
+               "or the three `columns:` named (serial_arm)")
     kind = "position"
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "base": NAME, "tool": NAME,
+                             "columns": {"type": "array", "items": NAME, "minItems": 3, "maxItems": 3,
+                                         "uniqueItems": True, "default": ["x", "y", "z"]},
                              "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
+        """`columns` (x, y, z of the marker, m; default x, y, z) are columns of the stream: several markers (two
+        hands) in one CSV."""
         check_arm_entry(spec, scope, ("pose3", "point3"))
-        scope.require_columns(spec, "stream", ("x", "y", "z"))
+        scope.require_columns(spec, "stream", tuple(spec["columns"]))
 
     def sigmas(self, spec: Spec) -> np.ndarray:
         return np.full(3, float(spec["sigma"]))
 
-    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
-        return np.column_stack([stream.column(c) for c in "xyz"])[rows]
+    def measured(self, stream, rows: np.ndarray, spec: Spec) -> np.ndarray:
+        return np.column_stack([stream.column(c) for c in spec["columns"]])[rows]
 
     @classmethod
     def example(cls, rng):
@@ -206,7 +212,7 @@ class RelativeToolPose(ArmMeasurement):
         nxt = np.flatnonzero(np.diff(rows) == 1)  # consecutive samples, both at a state
         return np.column_stack([ks[nxt], ks[nxt + 1]]), np.column_stack([rows[nxt], rows[nxt + 1]])
 
-    def measured(self, stream, rows: np.ndarray) -> np.ndarray:
+    def measured(self, stream, rows: np.ndarray, spec: Spec) -> np.ndarray:
         """z^-1 = P_b^-1 P_a for the measured motion z = P_a^-1 P_b of each pair."""
         poses = stream.pose_array()
         return lie.inverse(pose_matrices(poses[rows[:, 1]])) @ pose_matrices(poses[rows[:, 0]])

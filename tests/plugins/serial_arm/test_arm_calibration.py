@@ -116,3 +116,26 @@ def test_simulate_writes_a_dataset_that_runs_from_its_files(tmp_path, capsys):
     z = np.concatenate([np.ravel(e["z_per_axis"]) for e in report["evaluation"]["parameters"]["arm"].values()])
     assert np.max(np.abs(z)) < 4.0
     assert report["diagnostics"]["arm: kinematic identifiability"]["rank"] == 30
+
+
+def test_tool_position_reads_the_marker_from_named_columns_of_a_shared_csv(tmp_path):
+    """One CSV with both hands' markers: `columns:` names the three of this entry's marker; the estimate is the one
+    from a file with plain x, y, z columns, to the last digit."""
+    import yaml
+    from fusionkit.config.loader import load_config
+    from fusionkit.simulate import write_dataset
+    write_dataset("arm.sim", tmp_path, ["measurement=position", "configurations=30"], seed=1)
+    plain = estimate(load_config(tmp_path / "config.yaml"))
+    data = np.loadtxt(tmp_path / "data" / "tracker.csv", delimiter=",", skiprows=1)
+    other = data[:, 1:] + 0.5  # the other hand's marker, never read
+    np.savetxt(tmp_path / "data" / "hands.csv", np.column_stack([data[:, 0], other, data[:, 1:]]), delimiter=",",
+               header="t,left_x,left_y,left_z,right_x,right_y,right_z", comments="", fmt="%.17g")
+    config = yaml.safe_load((tmp_path / "config.yaml").read_text())
+    config["sources"][1]["path"] = "data/hands.csv"
+    config["factors"][1]["columns"] = ["right_x", "right_y", "right_z"]
+    (tmp_path / "hands.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    named = estimate(load_config(tmp_path / "hands.yaml"))
+    def flat(values):
+        return np.concatenate([np.ravel(v.matrix() if isinstance(v, gtsam.Pose3) else v) for v in values])
+    for name, p in plain.parameters["arm"].items():
+        assert np.array_equal(flat(named.parameters["arm"][name].values), flat(p.values)), name
