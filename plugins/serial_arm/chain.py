@@ -5,8 +5,10 @@ Conventions: a pose is a 4x4 homogeneous matrix a_T_b; a twist is in GTSAM's tan
 [rotation (rad), translation (m)] and perturbs a pose on the right, T' = T Exp(xi) (Pinocchio's
 LOCAL frame; Pinocchio orders its twists [linear, angular]).
 
-The chain's model: the URDF reduced to the listed joints (every other joint locked at its neutral
-value), so its configuration is one value per listed joint (rad, or m for a prismatic joint):
+The chain's model: the URDF reduced to the listed joints, the joints coupled to them (a URDF <mimic>, or a
+description's linear coupling q_c = offset + sum_i k_i q_i of listed joints) and nothing else: a joint that moves
+the tool must be listed, coupled or locked at a stated value; one that does not is locked at its neutral value.
+Its configuration is one value per listed joint (rad, or m for a prismatic joint):
 
     base_T_tool(q) = base_T_universe * prod_j [ parent_T_joint_j Exp(delta_j) * M_j(q_j + dq_j) ] * joint_T_tool
 
@@ -68,10 +70,33 @@ class Flange:
     placements: list[np.ndarray] | None = None  # per joint, 6 x 6: d twist / d delta_j (delta a plain vector)
 
 
-class SerialChain:
-    """A URDF arm between `base_frame` and `tool_frame`, moved by `joints` (in that order)."""
+@dataclass(frozen=True)
+class Coupling:
+    """A joint moved by listed joints: q_joint = offset + sum(factor * q_leader) (rad, or m)."""
 
-    def __init__(self, model: pin.Model, base_frame: str, tool_frame: str, joints: list[str]):
+    joint: str
+    leaders: tuple[tuple[str, float], ...]
+    offset: float = 0.0
+
+
+def urdf_mimics(path: Path) -> list[Coupling]:
+    """The URDF's <mimic> joints as couplings: q = multiplier * q_leader + offset."""
+    import xml.etree.ElementTree as ET
+    out = []
+    for joint in ET.parse(path).getroot().iter("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            out.append(Coupling(joint.get("name"), ((mimic.get("joint"), float(mimic.get("multiplier", 1.0))),),
+                                float(mimic.get("offset", 0.0))))
+    return out
+
+
+class SerialChain:
+    """A URDF arm between `base_frame` and `tool_frame`, moved by `joints` (in that order), with `couplings` (joints
+    moved by listed ones) and `locked` ({joint: value} held at a stated value)."""
+
+    def __init__(self, model: pin.Model, base_frame: str, tool_frame: str, joints: list[str],
+                 couplings: tuple[Coupling, ...] = (), locked: tuple[tuple[str, float], ...] = ()):
         for key, frame in (("base_frame", base_frame), ("tool_frame", tool_frame)):
             if not model.existFrame(frame):
                 raise ChainError(key, f"the URDF has no frame {frame!r}")
@@ -79,8 +104,10 @@ class SerialChain:
         if missing:
             raise ChainError("joints", f"the URDF has no joint {missing[0]!r}; its joints: "
                              f"{', '.join(list(model.names)[1:])}")
-        lock = [jid for jid in range(1, model.njoints) if model.names[jid] not in joints]
-        self.model = pin.buildReducedModel(model, lock, pin.neutral(model)) if lock else model
+        reference = self._check_couplings_and_locks(model, tool_frame, joints, couplings, dict(locked))
+        kept = set(joints) | {c.joint for c in couplings}
+        lock = [jid for jid in range(1, model.njoints) if model.names[jid] not in kept]
+        self.model = pin.buildReducedModel(model, lock, reference) if lock else model
         self.data = self.model.createData()
         self.joint_names = list(joints)
         self.jids = [self.model.getJointId(j) for j in joints]
@@ -89,6 +116,10 @@ class SerialChain:
             raise ChainError("joints", f"joint {wrong[0][0]!r} has {wrong[0][1]} degrees of freedom; a serial arm's "
                              "joints have one each")
         self.idx_v = [self.model.joints[jid].idx_v for jid in self.jids]
+        # coupled joints: their velocity index, their rows of dq_coupled / dq (n), and their offsets
+        self.coupled_v = [self.model.joints[self.model.getJointId(c.joint)].idx_v for c in couplings]
+        self.coupling = np.array([[dict(c.leaders).get(j, 0.0) for j in joints] for c in couplings]).reshape(-1, len(joints))
+        self.coupling_offset = np.array([c.offset for c in couplings], float)
         self.tool_id = self.model.getFrameId(tool_frame)
         base_id = self.model.getFrameId(base_frame)
         tool_support = set(self.model.supports[self.model.frames[self.tool_id].parentJoint])
@@ -108,9 +139,49 @@ class SerialChain:
         self.lower = np.array([self.model.lowerPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
         self.upper = np.array([self.model.upperPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
 
+    @staticmethod
+    def _check_couplings_and_locks(model: pin.Model, tool_frame: str, joints: list[str], couplings, locked: dict):
+        """ChainError unless every coupled or locked joint exists, is not listed, couples one-degree-of-freedom
+        listed leaders, and every joint that moves the tool is listed, coupled or locked. Returns the reference
+        configuration the other joints are held at (neutral, locked ones at their values)."""
+        names = list(model.names)
+        for c in couplings:
+            if not model.existJointName(c.joint):
+                raise ChainError("couplings", f"the URDF has no joint {c.joint!r} to couple")
+            if c.joint in joints or c.joint in locked:
+                raise ChainError("couplings", f"joint {c.joint!r} is coupled and also listed or locked: one of them")
+            if model.joints[model.getJointId(c.joint)].nv != 1:
+                raise ChainError("couplings", f"joint {c.joint!r} has more than one degree of freedom: it cannot "
+                                 "be coupled")
+            unlisted = [lead for lead, _ in c.leaders if lead not in joints]
+            if unlisted:
+                raise ChainError("couplings", f"joint {c.joint!r} follows {unlisted[0]!r}, which is not in `joints` "
+                                 "(a coupling's leaders are listed joints)")
+        for name in locked:
+            if not model.existJointName(name) or name in joints:
+                raise ChainError("locked", f"{name!r} is not a joint of the URDF outside `joints`")
+        tool_joint = model.frames[model.getFrameId(tool_frame)].parentJoint
+        moving = set(model.supports[tool_joint]) - {0}
+        free = {c.joint for c in couplings} | set(joints) | set(locked)
+        silent = [names[jid] for jid in sorted(moving) if names[jid] not in free]
+        if silent:
+            raise ChainError("joints", f"joint {silent[0]!r} moves tool_frame {tool_frame!r} but is not in `joints`: "
+                             "list it, couple it (`couplings:`, or a <mimic> in the URDF), or hold it at a stated "
+                             f"value (`locked: {{{silent[0]}: 0.0}}`)")
+        reference = pin.neutral(model)
+        for name, value in locked.items():
+            joint = model.joints[model.getJointId(name)]
+            if joint.nq == 1:
+                reference[joint.idx_q] = float(value)
+            elif joint.nq == 2:  # continuous: (cos, sin)
+                reference[joint.idx_q:joint.idx_q + 2] = np.cos(value), np.sin(value)
+        return reference
+
     @classmethod
-    def from_urdf(cls, path: Path, base_frame: str, tool_frame: str, joints: list[str]) -> "SerialChain":
-        """ChainError("urdf", ...) when Pinocchio cannot read the file (with what its parser printed)."""
+    def from_urdf(cls, path: Path, base_frame: str, tool_frame: str, joints: list[str],
+                  couplings: tuple[Coupling, ...] = (), locked: tuple[tuple[str, float], ...] = ()) -> "SerialChain":
+        """ChainError("urdf", ...) when Pinocchio cannot read the file (with what its parser printed). The URDF's
+        <mimic> joints that move the tool are couplings unless the description lists, couples or locks them."""
         with _captured_stderr() as printed:
             try:
                 model = pin.buildModelFromUrdf(str(path))
@@ -118,7 +189,12 @@ class SerialChain:
                 said = " ".join(printed().split())
                 raise ChainError("urdf", f"not a URDF Pinocchio can read: {str(exc).strip()}"
                                  + (f" ({said})" if said else "")) from None
-        return cls(model, base_frame, tool_frame, joints)
+        given = {c.joint for c in couplings} | set(dict(locked)) | set(joints)
+        moving = set()
+        if model.existFrame(tool_frame):  # a mimic joint that does not move the tool (a gripper finger) is held
+            moving = {model.names[j] for j in model.supports[model.frames[model.getFrameId(tool_frame)].parentJoint]}
+        mimics = tuple(c for c in urdf_mimics(path) if c.joint not in given and c.joint in moving)
+        return cls(model, base_frame, tool_frame, joints, tuple(couplings) + mimics, locked)
 
     @property
     def n(self) -> int:
@@ -127,6 +203,8 @@ class SerialChain:
     def _configuration(self, q: np.ndarray) -> np.ndarray:
         v = np.zeros(self.model.nv)
         v[self.idx_v] = q
+        if self.coupled_v:
+            v[self.coupled_v] = self.coupling_offset + self.coupling @ q
         return v if self._plain else pin.integrate(self.model, pin.neutral(self.model), v)
 
     def _set_placements(self, placements: dict[int, np.ndarray]) -> None:
@@ -157,7 +235,8 @@ class SerialChain:
             return Flange(self.base_T_universe @ pin.updateFramePlacement(model, data, self.tool_id).homogeneous)
         pin.computeJointJacobians(model, data, config)
         universe_T_tool = pin.updateFramePlacement(model, data, self.tool_id).homogeneous
-        J = pin.getFrameJacobian(model, data, self.tool_id, pin.LOCAL)[PIN_TO_GTSAM][:, self.idx_v]
+        full = pin.getFrameJacobian(model, data, self.tool_id, pin.LOCAL)[PIN_TO_GTSAM]
+        J = full[:, self.idx_v] + (full[:, self.coupled_v] @ self.coupling if self.coupled_v else 0.0)
         tool_T_universe = lie.inverse(universe_T_tool)
         blocks = []
         for j, jid in enumerate(self.jids):  # joint j's frame before it moves: universe_T_parent * parent_T_joint

@@ -5,7 +5,11 @@ kinematic parameters (docs/reference/robot_description.md#model-serial_arm).
     urdf: example-robot-data:ur10      # or a file relative to the description
     base_frame: base_link              # the URDF frame the arm stands on (FK starts here)
     tool_frame: tool0                  # the flange
-    joints: [shoulder_pan_joint, ...]  # the joint-state vector, in this order; other joints locked at 0
+    joints: [shoulder_pan_joint, ...]  # the joint-state vector, in this order
+    couplings:                         # optional: joints moved by listed ones (a URDF <mimic> is one too)
+      - {joint: torso_c, of: {torso_a: -1.0, torso_b: -1.0}, offset: 0.0}   # q_c = offset + sum k q (rad or m)
+    locked: {gripper_joint: 0.0}       # optional: joints held at a value (one that moves the tool must be listed,
+                                       # coupled or locked; the others are held at their neutral value)
     kinematics:                        # every key optional
       base: base                       # pose3: base_frame in the measurement frame
       tool: marker                     # pose3 (or point3): the marker in the tool frame
@@ -25,11 +29,16 @@ import numpy as np
 
 from fusionkit.api import Lines, Points, RobotDescription, RobotModel
 
-from .chain import ChainError, SerialChain
+from .chain import ChainError, Coupling, SerialChain
 from .urdf import urdf_path
 
 AXIS_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz")  # GTSAM's tangent order of a pose
 NAMES = {"type": "array", "items": {"type": "string"}, "minItems": 1, "uniqueItems": True}
+COUPLING = {"type": "object",
+            "properties": {"joint": {"type": "string"},
+                           "of": {"type": "object", "minProperties": 1, "additionalProperties": {"type": "number"}},
+                           "offset": {"type": "number", "default": 0.0}},
+            "required": ["joint", "of"], "additionalProperties": False}
 OFFSET_GROUP = {"type": "object", "properties": {"parameter": {"type": "string"}, "joints": NAMES},
                 "required": ["parameter", "joints"], "additionalProperties": False}
 PLACEMENT_GROUP = {"type": "object",
@@ -60,13 +69,21 @@ class Arm:
 
 
 @lru_cache(maxsize=32)
-def _chain(path: str, mtime: float, base_frame: str, tool_frame: str, joints: tuple[str, ...]) -> SerialChain:
-    return SerialChain.from_urdf(Path(path), base_frame, tool_frame, list(joints))
+def _chain(path: str, mtime: float, base_frame: str, tool_frame: str, joints: tuple[str, ...],
+           couplings: tuple[Coupling, ...], locked: tuple[tuple[str, float], ...]) -> SerialChain:
+    return SerialChain.from_urdf(Path(path), base_frame, tool_frame, list(joints), couplings, locked)
 
 
-def chain_from(path: Path, base_frame: str, tool_frame: str, joints) -> SerialChain:
+def chain_from(path: Path, base_frame: str, tool_frame: str, joints, couplings=(), locked=()) -> SerialChain:
     """The chain of a URDF file (loaded once while the file is unchanged)."""
-    return _chain(str(path), path.stat().st_mtime, base_frame, tool_frame, tuple(joints))
+    return _chain(str(path), path.stat().st_mtime, base_frame, tool_frame, tuple(joints), tuple(couplings),
+                  tuple(sorted(dict(locked).items())))
+
+
+def couplings_of(extra: dict) -> tuple[Coupling, ...]:
+    """The description's `couplings:` as chain couplings."""
+    return tuple(Coupling(c["joint"], tuple((k, float(v)) for k, v in c["of"].items()), float(c.get("offset", 0.0)))
+                 for c in extra.get("couplings", ()))
 
 
 def load_chain(desc: RobotDescription) -> SerialChain:
@@ -77,7 +94,7 @@ def load_chain(desc: RobotDescription) -> SerialChain:
     except FileNotFoundError as exc:
         raise desc.error(("urdf",), str(exc)) from None
     try:
-        return chain_from(path, x["base_frame"], x["tool_frame"], x["joints"])
+        return chain_from(path, x["base_frame"], x["tool_frame"], x["joints"], couplings_of(x), x.get("locked", {}))
     except ChainError as exc:
         raise desc.error((exc.key,), f"{path.name}: {exc}") from None
 
@@ -125,6 +142,8 @@ class SerialArmModel(RobotModel):
     schema = {"type": "object",
               "properties": {"urdf": {"type": "string"}, "base_frame": {"type": "string"},
                              "tool_frame": {"type": "string"}, "joints": NAMES,
+                             "couplings": {"type": "array", "items": COUPLING},
+                             "locked": {"type": "object", "additionalProperties": {"type": "number"}},
                              "kinematics": {"type": "object",
                                             "properties": {"base": {"type": "string"}, "tool": {"type": "string"},
                                                            "joint_offsets": {"type": "array", "items": OFFSET_GROUP},
