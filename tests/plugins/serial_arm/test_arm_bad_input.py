@@ -49,6 +49,12 @@ CASES = {
     "unreadable URDF": (edit_description(garbage_urdf), "urdf: broken.urdf: not a URDF Pinocchio can read: "),
     "unknown joint": (edit_description(lambda d, _: d["joints"].__setitem__(2, "knee")),
                       "joints: ur10_robot.urdf: the URDF has no joint 'knee'"),
+    "a joint moving the tool left out": (edit_description(lambda d, _: d.update(joints=d["joints"][:5])),
+                                         "joints: ur10_robot.urdf: joint 'wrist_3_joint' moves tool_frame 'tool0' but "
+                                         "is not in `joints`"),
+    "coupling of an unknown joint": (
+        edit_description(lambda d, _: d.update(couplings=[{"joint": "knee", "of": {"elbow_joint": 1.0}}])),
+        "couplings: ur10_robot.urdf: the URDF has no joint 'knee' to couple"),
     "unknown tool frame": (edit_description(lambda d, _: d.update(tool_frame="flange")),
                            "tool_frame: ur10_robot.urdf: the URDF has no frame 'flange'"),
     "group joint not in the arm": (
