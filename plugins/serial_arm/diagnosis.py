@@ -1,5 +1,6 @@
 """The identifiability diagnostic of a serial arm in a run: the kinematic regressor of every marker
-entry of the robot at the joint readings and the nominal parameters, the parameters to hold, the
+entry of the robot at the joint readings and the nominal parameters with the base and tool fitted to the entry's
+data (frames.frame_fit: a marker at the URDF's tool origin would hide the last wrist offset), the parameters to hold, the
 hold factors, and the verdict in words (docs/models/serial_arm.md#identifiability).
 
 Held parameters (tangent axes) get a prior of HOLD_SIGMA at their nominal value: FIGAROH's "base
@@ -17,6 +18,7 @@ import numpy as np
 
 from fusionkit.api import gaussian, Spec
 
+from .frames import frame_fit
 from .identifiability import analyze, kinematic_regressor
 from .kinematics import Layout, parameters_of
 from .model import AXIS_NAMES, arm_of, group_joints
@@ -103,14 +105,16 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
     for entry in entries:
         ftype = types[entry.type]
         layout, variables = ftype.layout(ctx, entry)
-        ks, _ = ftype.samples(ctx, entry)
+        ks, rows = ftype.samples(ctx, entry)
         if not len(ks):
             continue
         q = np.array([[ctx.initial_value(ctx.state_key(robot, int(k))) for k in np.atleast_1d(pair)] for pair in ks])
         configurations.update(np.unique(ks).tolist())
         nominal = parameters_of(layout, [desc.parameters[name].values[index or 0] for name, index in variables])
-        A = kinematic_regressor(chain, layout, nominal, q if ftype.kind == "relative" else q[:, 0], ftype.kind,
-                                ftype.sigmas(entry))
+        joints = q if ftype.kind == "relative" else q[:, 0]
+        point = frame_fit(chain, layout, nominal, joints, ftype.measured(ctx.stream(entry["stream"]), rows, entry),
+                          ftype.kind)
+        A = kinematic_regressor(chain, layout, point, joints, ftype.kind, ftype.sigmas(entry))
         targets, c = [], 0
         for role, name, index, axes in parameter_axes(layout, variables, desc, chain):
             used_ks.setdefault((name, index), set()).update(np.asarray(ks).reshape(len(ks), -1)[:, -1].tolist())

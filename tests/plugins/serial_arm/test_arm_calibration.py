@@ -50,14 +50,16 @@ def estimated_axes(result) -> tuple[np.ndarray, np.ndarray]:
     return np.array(errors), np.array(zs)
 
 
-@pytest.mark.parametrize("case, estimated", [("ur10", 30), ("panda", 34), ("ur10_laser", 25)])
+@pytest.mark.parametrize("case, estimated", [("ur10", 30), ("panda", 34), ("ur10_laser", 27)])
 def test_identifiable_parameters_are_recovered_within_their_sigmas(runs, case, estimated):
     """Measured (seeds 0-3): max |z| 2.2-2.9 and rms z 0.9-1.2 over the estimated axes; errors below
-    0.2 mm / 0.2 mrad."""
+    0.2 mm / 0.2 mrad where the data determine an axis to 0.1 mm / 0.1 mrad (the laser's wrist_3 placement tx and
+    rx rest on a marker 4 mm from the last axis: sigma 0.3 mm and 1.6 mrad)."""
     errors, zs = estimated_axes(runs[case])
     assert len(zs) == estimated
     assert np.max(np.abs(zs)) < 4.0 and 0.6 < np.sqrt(np.mean(zs ** 2)) < 1.5
-    assert np.max(np.abs(errors)) < 3e-4
+    sigma = np.abs(errors / np.where(zs == 0, np.inf, zs))
+    assert np.max(np.abs(errors)[sigma < 1e-4]) < 3e-4
     assert 0.5 < runs[case].solution.chi2_per_dof < 1.5
 
 
