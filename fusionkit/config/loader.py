@@ -30,6 +30,7 @@ class RobotSetup:
     name: str
     description: RobotDescription
     states: dict[str, Any] | None
+    shared: dict[str, tuple[str, str]] = field(default_factory=dict)  # parameter -> (owner robot, its parameter)
 
 
 @dataclass
@@ -141,7 +142,40 @@ def _load_robots(doc: Document, base: Path, reg) -> dict[str, RobotSetup]:
             entries = calibration_entries(cal)
             apply_calibration(desc, entries.get(name, {}), cal, name)
         robots[name] = RobotSetup(name, desc, raw.get("states"))
+    _resolve_shared(doc, robots)
     return robots
+
+
+def _resolve_shared(doc: Document, robots: dict[str, RobotSetup]) -> None:
+    """Each robot's `shared: {parameter: other_robot/parameter}`: the parameter is the other robot's (one variable,
+    the owner's value and prior), followed to the robot that owns it. Both must exist with the same type and
+    number of elements, neither time-varying; a cycle is refused."""
+    raw = {name: doc.data["robots"][name].get("shared", {}) for name in robots}
+    for name, entries in raw.items():
+        for param, ref in entries.items():
+            path = ("robots", name, "shared", param)
+            mine = robots[name].description.parameters.get(param)
+            if mine is None:
+                raise doc.error(path, f"robot {name!r} has no parameter {param!r}; its parameters: "
+                                f"{', '.join(robots[name].description.parameters) or '(none)'}")
+            owner, other = ref.split("/")
+            if owner not in robots or other not in robots[owner].description.parameters:
+                raise doc.error(path, f"{ref!r}: no such robot parameter (expected robot/parameter of this config)")
+            theirs = robots[owner].description.parameters[other]
+            if (mine.vartype.name, len(mine.values)) != (theirs.vartype.name, len(theirs.values)):
+                raise doc.error(path, f"{name}/{param} is {len(mine.values)} {mine.vartype.name}, {ref} is "
+                                f"{len(theirs.values)} {theirs.vartype.name}: a shared parameter has one type and size")
+            if mine.time_varying or theirs.time_varying:
+                raise doc.error(path, "a time-varying parameter follows its own robot's states: it cannot be shared")
+            seen, at = {(name, param)}, (owner, other)
+            while at[1] in raw.get(at[0], {}):
+                if at in seen or at == (name, param):
+                    raise doc.error(path, f"{ref!r}: the shared parameters form a cycle")
+                seen.add(at)
+                at = tuple(raw[at[0]][at[1]].split("/"))
+            if at == (name, param):
+                raise doc.error(path, f"{ref!r}: a parameter cannot be shared with itself")
+            robots[name].shared[param] = at
 
 
 def _state_clock(doc: Document, robot: str, raw: dict, streams: dict[str, tuple[str, ...]]) -> dict:

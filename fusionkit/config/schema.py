@@ -42,6 +42,9 @@ CONFIG_SCHEMA = {
                 "properties": {
                     "description": {"type": ["string", "object"]},
                     "overrides": {"type": "string"},
+                    "shared": {"type": "object",
+                               "additionalProperties": {"type": "string",
+                                                        "pattern": "^[A-Za-z_][A-Za-z0-9_]*/[A-Za-z_][A-Za-z0-9_]*$"}},
                     "states": {
                         "type": "object",
                         "properties": {

@@ -136,6 +136,9 @@ class BuildContext:
         self._pending: dict[int, Any] = {}  # declared variables not yet inserted into _values
         self.key_time: dict[int, float] = {}  # every declared variable -> the time it belongs to
         self.notes: list[str] = list(config.notes)
+        self.notes += [f"robot {robot!r}: parameter {name!r} is {owner}/{theirs} (shared): one variable, with "
+                       f"{owner}'s value and prior; reported under {owner!r}"
+                       for robot, setup in config.robots.items() for name, (owner, theirs) in setup.shared.items()]
         self.diagnostics: dict[str, dict] = {}
         self.analyses: list[str] = []  # labels of the diagnostics about identifiability
         self.plots: dict[str, Callable[[Path], None]] = {}
@@ -249,6 +252,7 @@ class BuildContext:
         chained by a `parameter.random_walk` factor. The description's prior is added once (time-varying:
         on the first state only).
         """
+        robot, name = self.config.robots[robot].shared.get(name, (robot, name))  # a shared one: the owner's
         param = self.robot(robot).parameters[name]
         i = 0 if index is None else index
         if param.time_varying:
