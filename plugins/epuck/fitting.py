@@ -362,7 +362,8 @@ def coverage(bank, distance: np.ndarray, reading: np.ndarray, sigmas=(1.0, 2.0, 
     Phi(-k) .. Phi(k) of the transform, where a Gaussian reading within k sigma falls."""
     from scipy.special import ndtr
     ev = bank.evaluate(np.asarray(distance, float), np.zeros(len(distance), int))
-    sigma, pi, top = np.sqrt(ev.var), float(bank.dropout[0]), float(bank.saturation[0])
+    sigma = np.sqrt(np.maximum(ev.var, np.finfo(float).tiny))  # a variance fitted to 0 somewhere: a point mass
+    pi, top = float(bank.dropout[0]), float(bank.saturation[0])
     reading = np.asarray(reading, float)
     cdf = pi + (1.0 - pi) * ndtr((reading - ev.mean) / sigma)
     lo = np.where(reading == 0, 0.0, cdf)
