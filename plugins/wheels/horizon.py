@@ -1,8 +1,9 @@
 """`wheels.long_horizon`: the driven wheels dead-reckoned over long windows, scored where a reference places the
 robot (docs/models/wheels.md#long-horizon-calibration).
 
-A window starts at an anchor state X_a (the first state of each recording, then every `horizon` s) and runs
-through the later states X_c1..X_cn up to the next anchor. Its factor integrates the wheel samples between them
+Checkpoints are states `spacing` m of travel apart (every state without it). Every checkpoint X_a anchors a window
+through the later checkpoints X_c1..X_cn of its recording (up to `horizon` s; `anchors: recording_start`: only the
+recording's first state anchors one): every horizon at once. A window's factor integrates the wheel samples
 exactly at the current intrinsics theta = (r_L, r_R, A) (preintegration.dead_reckon) and compares, at every
 checkpoint state, where dead reckoning from X_a puts the robot with where the state is:
 
