@@ -23,11 +23,9 @@ show (chi2/dof near 1) and with both entries' noise scales estimated from the da
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from research.external_data import external_data
 from research.wheels_optiodom import (CIRCULAR, INCREMENTS, LONG_HORIZON, NAME, SQUARE, WheelParameters,
-                                      checkpoint_fit, evaluate, graph_calibration, least_squares, load_session,
+                                      checkpoint_fit, evaluate, graph_calibration, held_out, least_squares, load_session,
                                       nominal, published, umbmark_parameters)
 from _timing import run_parts, table, timed
 
@@ -103,18 +101,6 @@ OBJECTIVES = {
     "increments + the documented long horizon": {**LONG_HORIZON, "objective": "increments+long_horizon",
                                                "wheel_sigma": INCREMENTS["wheel_sigma"]},
 }
-
-
-def held_out(session, fit) -> tuple[float, float]:
-    """Leave one run out: each run dead-reckoned with `fit` of the session's other runs; the largest error
-    along any held-out path and the largest final error (m)."""
-    along, final = [], []
-    for i, run in enumerate(session.runs):
-        others = replace(session, runs=[r for j, r in enumerate(session.runs) if j != i])
-        e = evaluate(replace(session, runs=[run]), fit(others))
-        along.append(e.max_along)
-        final.append(e.max_final)
-    return max(along), max(final)
 
 
 def graph_held_out(session, settings: dict) -> dict:

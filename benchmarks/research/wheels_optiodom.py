@@ -184,6 +184,15 @@ def evaluate(session: Session, params: WheelParameters) -> PathErrors:
                                       for r in session.runs])
 
 
+def held_out(session: Session, fit) -> tuple[float, float]:
+    """Leave one run out: each run dead-reckoned with `fit` (Session -> WheelParameters) of the session's other runs;
+    the largest error along any held-out path and the largest final error (m)."""
+    from dataclasses import replace
+    errors = [evaluate(replace(session, runs=[run]), fit(replace(session, runs=session.runs[:i] + session.runs[i + 1:])))
+              for i, run in enumerate(session.runs)]
+    return max(e.max_along for e in errors), max(e.max_final for e in errors)
+
+
 def least_squares(session: Session, length: int | None = None) -> WheelParameters:
     """Two-stage least squares (plugins/wheels/systematic.py) on the session's runs, each run one segment
     (Antonelli et al.'s experiments), or cut into segments of `length` cycles."""

@@ -168,13 +168,11 @@ def _resolve_shared(doc: Document, robots: dict[str, RobotSetup]) -> None:
             if mine.time_varying or theirs.time_varying:
                 raise doc.error(path, "a time-varying parameter follows its own robot's states: it cannot be shared")
             seen, at = {(name, param)}, (owner, other)
-            while at[1] in raw.get(at[0], {}):
-                if at in seen or at == (name, param):
+            while at[1] in raw.get(at[0], {}):  # follow the shares to the owner
+                if at in seen:
                     raise doc.error(path, f"{ref!r}: the shared parameters form a cycle")
                 seen.add(at)
                 at = tuple(raw[at[0]][at[1]].split("/"))
-            if at == (name, param):
-                raise doc.error(path, f"{ref!r}: a parameter cannot be shared with itself")
             robots[name].shared[param] = at
 
 

@@ -263,11 +263,16 @@ class SensorFit:
     clipped: int = 0        # distances left out of the curves: from the first with a reading clipped at 0 on
 
 
+def in_units(distance: np.ndarray, unit: float) -> np.ndarray:
+    """Distances (m) in the fit's x unit, rounded so that readings at one distance share one x."""
+    return np.round(np.asarray(distance, float) / unit, 9)
+
+
 def dropout_distances(distance: np.ndarray, reading: np.ndarray, unit: float) -> np.ndarray:
     """Which readings lie at a distance where a 0 is a drop-out, not a weak reading: the distance's non-zero readings
     (two or more) have a mean DROPOUT_SIGMAS of their standard deviations above 0 (there a sensor that returns
     nothing now and then is told apart; where the signal is near 0 a 0 is a reading clipped at 0)."""
-    x = np.round(np.asarray(distance, float) / unit, 9)
+    x = in_units(distance, unit)
     out = np.zeros(len(x), bool)
     for v in np.unique(x):
         at = x == v
@@ -287,7 +292,7 @@ def saturation_level(distance: np.ndarray, reading: np.ndarray, unit: float) -> 
     that value (an ADC at its top near the wall reads one value), else None."""
     reading = np.asarray(reading, float)
     top = float(reading.max())
-    x = np.round(np.asarray(distance, float) / unit, 9)
+    x = in_units(distance, unit)
     for v in np.unique(x[reading == top]):
         at = reading[x == v]
         if len(at) >= 2 and np.all(at == top):
@@ -297,7 +302,7 @@ def saturation_level(distance: np.ndarray, reading: np.ndarray, unit: float) -> 
 
 def distance_statistics(distance: np.ndarray, reading: np.ndarray, unit: float) -> tuple[np.ndarray, ...]:
     """Per distinct distance (m, in x = distance / unit): count, mean and sample variance of the readings."""
-    x = np.round(np.asarray(distance, float) / unit, 9)
+    x = in_units(distance, unit)
     xs = np.unique(x)
     count = np.array([np.sum(x == v) for v in xs])
     mean = np.array([reading[x == v].mean() for v in xs])
@@ -322,7 +327,7 @@ def fit_sensor(distance: np.ndarray, reading: np.ndarray, unit: float = 0.01, ma
     x, count, mean, var = distance_statistics(distance, reading, unit)
     if np.any(count < 2):
         raise ValueError(f"each distance needs two or more readings; {np.sum(count < 2)} distance(s) have one")
-    xs = np.round(np.asarray(distance, float) / unit, 9)
+    xs = in_units(distance, unit)
     # a distance read at the saturation says only "at least that", one with readings clipped at 0 (a weak signal)
     # only "at most": neither gives a mean or a variance
     flat = np.array([saturation is not None and np.median(reading[xs == v]) >= saturation for v in x])

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-GRID = 701  # points on [d_min, d_max] for the variance floor, the peaks and the inverse lookup
+GRID = 701  # points on [d_min, d_max] for the variance floor, the running minimum and the inverse lookup
 
 
 def gaussian_sum(terms: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -61,12 +61,11 @@ class Bank:
     def __init__(self, mean_terms: list, var_terms: list, unit: float, d_min: float, d_max: float,
                  dropout=None, saturation=None):
         self.mean_terms, self.var_terms = stack_terms(mean_terms), stack_terms(var_terms)
-        size = len(self.mean_terms)
-        self.dropout = np.zeros(size) if dropout is None else np.asarray(dropout, float)
-        self.saturation = np.full(size, np.inf) if saturation is None else np.array(
+        self.size = len(self.mean_terms)
+        self.dropout = np.zeros(self.size) if dropout is None else np.asarray(dropout, float)
+        self.saturation = np.full(self.size, np.inf) if saturation is None else np.array(
             [np.inf if v is None else float(v) for v in saturation])
         self.unit, self.d_min, self.d_max = float(unit), float(d_min), float(d_max)
-        self.size = len(self.mean_terms)
         grid = np.linspace(d_min, d_max, GRID)
         self.grid = grid
         sums = self._sum_inside(np.repeat(grid[:, None], self.size, 1))[0]
@@ -80,7 +79,6 @@ class Bank:
         self.var_lo, self.var_hi = v[0], v[1]
         self.grid_var = self._var_inside(np.repeat(grid[:, None], self.size, 1))[0]
         self.var_floor = 0.9 * self.grid_var.min(axis=0)  # below every variance the model gives
-        self.peak = np.zeros(self.size, int)              # the mean is largest at d_min and never rises
         self.near_threshold = np.minimum(self.grid_mean[0], self.saturation)  # a reading above: closer than d_min,
         # or at the sensor's saturation
         self.far_threshold = self.mean_hi.copy()            # a reading below: nothing within d_max
@@ -94,8 +92,6 @@ class Bank:
         """The mean at d inside the range: the Gaussian sum's running minimum from d_min (the smallest of the sum at
         d and its grid envelope at the grid point below d), its derivative 0 where the envelope holds it flat."""
         f, df = self._sum_inside(d, sensor)
-        if not hasattr(self, "grid_mean"):
-            return f, df
         j = np.clip(((d - self.d_min) / (self.d_max - self.d_min) * (GRID - 1)).astype(int), 0, GRID - 1)
         columns = np.arange(self.size)[sensor] if isinstance(sensor, slice) else np.asarray(sensor)
         before = self.grid_mean[j, np.broadcast_to(columns, np.shape(d))]
@@ -125,25 +121,21 @@ class Bank:
         return Evaluation(m, dm, v, dv)
 
     def inverse(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distance (m) whose mean reading is z (..., S) and its 1-sigma sigma(d) / |dF/dd| (m), on the
-        branch of each sensor's mean from its peak to d_max; where the fitted mean is not monotone
-        there (IR3's published fit rises by 0.3 counts between 4.3 and 4.5 cm) the first distance at
-        which it falls to z. nan where z is outside the branch's readings (nothing in range, or
-        closer than the branch)."""
+        """Distance (m) whose mean reading is z (..., S) and its 1-sigma sigma(d) / |dF/dd| (m); where the mean is
+        held flat (a sum that rises: IR3's published fit by 0.3 counts between 4.3 and 4.5 cm) a distance of the
+        flat stretch. nan where z is outside the mean's readings over the range (nothing in range, or closer)."""
         z = np.asarray(z, float)
         shape = np.broadcast_shapes(z.shape, (self.size,))
         z = np.broadcast_to(z, shape)
         d = np.full(shape, np.nan)
         for s in range(self.size):
-            branch = slice(self.peak[s], None)
-            envelope = np.minimum.accumulate(self.grid_mean[branch, s])   # non-increasing
-            m, g = envelope[::-1], self.grid[branch][::-1]
+            m, g = self.grid_mean[::-1, s], self.grid[::-1]  # increasing readings
             zs = z[..., s]
             ok = (zs >= m[0]) & (zs <= m[-1])
             d[..., s] = np.where(ok, np.interp(zs, m, g), np.nan)
         for _ in range(3):  # Newton on the exact model where it is monotone (the grid is good to ~1e-6 m)
             e = self.evaluate(np.where(np.isnan(d), self.d_max, d))
             step = np.where(e.dmean < 0, (e.mean - z) / np.where(e.dmean < 0, e.dmean, -1.0), 0.0)
-            d = np.clip(d - np.clip(step, -1e-4, 1e-4), self.grid[self.peak], self.d_max)
+            d = np.clip(d - np.clip(step, -1e-4, 1e-4), self.d_min, self.d_max)
         e = self.evaluate(np.where(np.isnan(d), self.d_max, d))
         return d, np.sqrt(e.var) / np.abs(e.dmean)

@@ -79,6 +79,13 @@ class Coupling:
     offset: float = 0.0
 
 
+def moving_joints(model: pin.Model, frame: str) -> list[str]:
+    """The names of the joints that move `frame` (from the root out; none for a frame the model lacks)."""
+    if not model.existFrame(frame):
+        return []
+    return [model.names[j] for j in model.supports[model.frames[model.getFrameId(frame)].parentJoint] if j != 0]
+
+
 def urdf_mimics(path: Path) -> list[Coupling]:
     """The URDF's <mimic> joints as couplings: q = multiplier * q_leader + offset."""
     import xml.etree.ElementTree as ET
@@ -122,8 +129,8 @@ class SerialChain:
         self.coupling_offset = np.array([c.offset for c in couplings], float)
         self.tool_id = self.model.getFrameId(tool_frame)
         base_id = self.model.getFrameId(base_frame)
-        tool_support = set(self.model.supports[self.model.frames[self.tool_id].parentJoint])
-        unmoved = [j for j, jid in zip(joints, self.jids) if jid not in tool_support]
+        moving = set(moving_joints(self.model, tool_frame))
+        unmoved = [j for j in joints if j not in moving]
         if unmoved:
             raise ChainError("joints", f"joint {unmoved[0]!r} does not move tool_frame {tool_frame!r}")
         if self.model.frames[base_id].parentJoint != 0:
@@ -144,7 +151,6 @@ class SerialChain:
         """ChainError unless every coupled or locked joint exists, is not listed, couples one-degree-of-freedom
         listed leaders, and every joint that moves the tool is listed, coupled or locked. Returns the reference
         configuration the other joints are held at (neutral, locked ones at their values)."""
-        names = list(model.names)
         for c in couplings:
             if not model.existJointName(c.joint):
                 raise ChainError("couplings", f"the URDF has no joint {c.joint!r} to couple")
@@ -160,10 +166,8 @@ class SerialChain:
         for name in locked:
             if not model.existJointName(name) or name in joints:
                 raise ChainError("locked", f"{name!r} is not a joint of the URDF outside `joints`")
-        tool_joint = model.frames[model.getFrameId(tool_frame)].parentJoint
-        moving = set(model.supports[tool_joint]) - {0}
         free = {c.joint for c in couplings} | set(joints) | set(locked)
-        silent = [names[jid] for jid in sorted(moving) if names[jid] not in free]
+        silent = [name for name in moving_joints(model, tool_frame) if name not in free]
         if silent:
             raise ChainError("joints", f"joint {silent[0]!r} moves tool_frame {tool_frame!r} but is not in `joints`: "
                              "list it, couple it (`couplings:`, or a <mimic> in the URDF), or hold it at a stated "
@@ -190,9 +194,7 @@ class SerialChain:
                 raise ChainError("urdf", f"not a URDF Pinocchio can read: {str(exc).strip()}"
                                  + (f" ({said})" if said else "")) from None
         given = {c.joint for c in couplings} | set(dict(locked)) | set(joints)
-        moving = set()
-        if model.existFrame(tool_frame):  # a mimic joint that does not move the tool (a gripper finger) is held
-            moving = {model.names[j] for j in model.supports[model.frames[model.getFrameId(tool_frame)].parentJoint]}
+        moving = set(moving_joints(model, tool_frame))  # a mimic joint that does not move the tool (a finger) is held
         mimics = tuple(c for c in urdf_mimics(path) if c.joint not in given and c.joint in moving)
         return cls(model, base_frame, tool_frame, joints, tuple(couplings) + mimics, locked)
 

@@ -10,6 +10,8 @@ values, gives the data-informed point; a step that does not lower the cost ends 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from fusionkit.api import lie
@@ -29,15 +31,15 @@ def _residuals(chain, layout: Layout, p: Parameters, q: np.ndarray, measured: np
 
 def _moved(layout: Layout, p: Parameters, step: np.ndarray) -> Parameters:
     """p with the base and tool moved by a step in their tangents (right perturbations, as the graph's Pose3)."""
-    out, i = Parameters(p.base, p.tool, p.offsets, p.placements), 0
+    base, tool, i = p.base, p.tool, 0
     if layout.base:
-        out.base, i = np.asarray(p.base, float) @ lie.exp(step[:6]), 6
+        base, i = np.asarray(p.base, float) @ lie.exp(step[:6]), 6
     if layout.tool == "pose3":
-        out.tool = np.asarray(p.tool, float) @ lie.exp(step[i:i + 6])
+        tool = np.asarray(p.tool, float) @ lie.exp(step[i:i + 6])
     elif layout.tool:
-        out.tool = np.asarray(p.tool, float).copy()
-        out.tool[:3, 3] += step[i:i + 3]
-    return out
+        tool = np.asarray(p.tool, float).copy()
+        tool[:3, 3] += step[i:i + 3]
+    return replace(p, base=base, tool=tool)
 
 
 def frame_fit(chain, layout: Layout, p: Parameters, q: np.ndarray, measured: np.ndarray, kind: str) -> Parameters:

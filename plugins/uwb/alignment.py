@@ -50,37 +50,39 @@ def _rot(phi: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def _cauchy_gauss_newton(x: np.ndarray, ranges) -> tuple[np.ndarray, float]:
+    """ITERATIONS Gauss-Newton steps with Cauchy weights from x; `ranges(x)` gives the range residuals (R,) and their
+    Jacobian (R, len(x)). Returns x and its robust cost sum log(1 + (e / CAUCHY_SCALE)^2)."""
+    x = np.array(x, float)
+    for _ in range(ITERATIONS):
+        e, J = ranges(x)
+        w = 1.0 / (1.0 + (e / CAUCHY_SCALE) ** 2)
+        H = (J * w[:, None]).T @ J + 1e-9 * np.eye(len(x))
+        x = x - np.linalg.solve(H, (J * w[:, None]).T @ e)
+    e = ranges(x)[0]
+    return x, float(np.sum(np.log1p((e / CAUCHY_SCALE) ** 2)))
+
+
+def _distances(points: np.ndarray, anchors: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Range residuals |p - a| - z and the unit vectors from the anchors (d |p - a| / d p)."""
+    d = points - anchors
+    r = np.linalg.norm(d, axis=1)
+    return r - z, d / np.maximum(r, 1e-9)[:, None]
+
+
 def _translation(q: np.ndarray, anchors: np.ndarray, z: np.ndarray, t0: np.ndarray) -> tuple[np.ndarray, float]:
     """The translation t minimizing the robust cost of ranges z to anchors from tag points q + t (all (R, 2))."""
-    t = np.array(t0, float)
-    for _ in range(ITERATIONS):
-        d = q + t - anchors
-        r = np.linalg.norm(d, axis=1)
-        e = r - z
-        w = 1.0 / (1.0 + (e / CAUCHY_SCALE) ** 2)
-        J = d / np.maximum(r, 1e-9)[:, None]
-        H = (J * w[:, None]).T @ J + 1e-9 * np.eye(2)
-        t = t - np.linalg.solve(H, (J * w[:, None]).T @ e)
-    e = np.linalg.norm(q + t - anchors, axis=1) - z
-    return t, float(np.sum(np.log1p((e / CAUCHY_SCALE) ** 2)))
+    return _cauchy_gauss_newton(t0, lambda t: _distances(q + t, anchors, z))
 
 
 def _refined(q0: np.ndarray, anchors: np.ndarray, z: np.ndarray, phi: float, t: np.ndarray):
     """(cost, phi, t) after Gauss-Newton with Cauchy weights on rotation and translation together."""
-    x = np.array([phi, *t], float)
-    for _ in range(ITERATIONS):
-        R = _rot(x[0])
+    def ranges(x):
         dR = np.array([[-np.sin(x[0]), -np.cos(x[0])], [np.cos(x[0]), -np.sin(x[0])]])
-        d = q0 @ R.T + x[1:] - anchors
-        r = np.linalg.norm(d, axis=1)
-        e = r - z
-        w = 1.0 / (1.0 + (e / CAUCHY_SCALE) ** 2)
-        u = d / np.maximum(r, 1e-9)[:, None]
-        J = np.column_stack([np.sum(u * (q0 @ dR.T), axis=1), u])
-        H = (J * w[:, None]).T @ J + 1e-9 * np.eye(3)
-        x = x - np.linalg.solve(H, (J * w[:, None]).T @ e)
-    e = np.linalg.norm(q0 @ _rot(x[0]).T + x[1:] - anchors, axis=1) - z
-    return float(np.sum(np.log1p((e / CAUCHY_SCALE) ** 2))), float(x[0]), x[1:]
+        e, u = _distances(q0 @ _rot(x[0]).T + x[1:], anchors, z)
+        return e, np.column_stack([np.sum(u * (q0 @ dR.T), axis=1), u])
+    x, cost = _cauchy_gauss_newton(np.array([phi, *t], float), ranges)
+    return cost, float(x[0]), x[1:]
 
 
 def align(path: np.ndarray, lever: np.ndarray, state_of_range: np.ndarray, anchors: np.ndarray, z: np.ndarray,

@@ -10,7 +10,7 @@ import pytest
 
 from research.external_data import external_data, missing_reason
 from research.wheels_optiodom import (CIRCULAR, INCREMENTS, LONG_HORIZON, NAME, SQUARE, checkpoint_fit, evaluate,
-                                      graph_calibration, least_squares, load_session, nominal, published,
+                                      graph_calibration, held_out, least_squares, load_session, nominal, published,
                                       umbmark_parameters)
 
 pytestmark = pytest.mark.skipif(not external_data(NAME).is_dir(),
@@ -109,14 +109,6 @@ def test_crossval_leaves_each_run_out_as_the_documented_table_does(sessions, tmp
     finals = [f["entries"]["factors[0]:pose.absolute"]["parts"]["position"]["final"] for f in out.folds]
     assert max(finals) == pytest.approx(final, abs=5e-4)
     assert "stated too large" in entry["check"]  # chi2/dof of the fits is 0.15-0.5: the wheel noise is overstated
-
-
-def held_out(session, fit) -> tuple[float, float]:
-    """Leave one run out: the largest max e_d and final error of each run dead-reckoned with `fit` of the others."""
-    from dataclasses import replace
-    errors = [evaluate(replace(session, runs=[run]), fit(replace(session, runs=session.runs[:i] + session.runs[i + 1:])))
-              for i, run in enumerate(session.runs)]
-    return max(e.max_along for e in errors), max(e.max_final for e in errors)
 
 
 @pytest.mark.slow
