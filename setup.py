@@ -14,4 +14,4 @@ robots = [f"{name}.robots" for name in plugins if (ROOT.joinpath("plugins", *nam
 
 setup(packages=find_packages(include=["fusionkit", "fusionkit.*"]) + plugins + robots,
       package_dir={"fusionkit_plugins": "plugins"},
-      package_data={name: ["*.yaml"] for name in robots})
+      package_data={name: ["*.yaml", "*.urdf"] for name in robots})

@@ -42,18 +42,29 @@ PATHS = {"oneOf": [{"type": "string"}, {"type": "array", "items": {"type": "stri
 
 class CsvSource(Source):
     name = "csv"
-    summary = "stream CSV: header row, first column t (s), then named numeric columns (several files: recordings)"
+    summary = ("stream CSV: header row, first column t (s), then named numeric columns (several files: recordings; "
+               "`time: row` for static samples without time stamps: t = row number)")
     schema = {"type": "object", "properties": {"name": NAME, "path": PATHS,
-                                               "columns": {"type": "array", "items": {"type": "string"}}},
+                                               "columns": {"type": "array", "items": {"type": "string"}},
+                                               "time": {"enum": ["column", "row"], "default": "column"}},
               "required": ["name", "path"], "additionalProperties": False}
 
     def stream_names(self, spec: Spec, base_dir: Path):
         path = existing_files(spec, base_dir)[0]
-        return {spec["name"]: tuple(spec.get("columns") or read_csv_header(path))}
+        return {spec["name"]: tuple(spec.get("columns") or read_csv_header(path, spec.get("time") == "row"))}
 
     def read(self, spec: Spec, base_dir: Path) -> SourceOutput:
+        """`time: row`: a file without a `t` column numbers its rows 0, 1, ... (static samples: sample i of every
+        such stream is the same configuration); with several files the numbering continues across them."""
         files = existing_files(spec, base_dir)
-        parts = [read_csv_stream(f, spec["name"], tuple(spec.get("columns", ()))) for f in files]
+        indexed = spec.get("time") == "row"
+        parts = [read_csv_stream(f, spec["name"], tuple(spec.get("columns", ())), indexed) for f in files]
+        if indexed:
+            numbered = 0
+            for part in parts:  # a numbered file's rows continue the previous files' numbering
+                if numbered and np.array_equal(part.t, np.arange(len(part.t))):
+                    part.t = part.t + numbered
+                numbered = int(part.t[-1]) + 1
         stream = concatenated(parts, files)
         return SourceOutput({stream.name: stream})
 

@@ -85,21 +85,25 @@ def _is_data(row: list[str]) -> bool:
 def _check_header(path: Path, line: int, header: list[str]) -> None:
     if header[0] != "t":
         raise DataError(f"{path}:{line}: first column is {header[0]!r}; expected 't' (time in seconds), "
-                        f"header was {','.join(header)}")
+                        f"header was {','.join(header)} (static samples without times: `time: row` on a csv "
+                        "source numbers the rows)")
     repeated = sorted({h for h in header if header.count(h) > 1 or not h})
     if repeated:
         raise DataError(f"{path}:{line}: column name(s) {', '.join(map(repr, repeated))} empty or repeated; "
                         f"expected distinct names, header was {','.join(header)}")
 
 
-def read_csv_header(path: Path) -> tuple[str, ...]:
-    """The column names after `t`, reading no further than the header row (to validate before reading data)."""
+def read_csv_header(path: Path, indexed: bool = False) -> tuple[str, ...]:
+    """The column names after `t`, reading no further than the header row (to validate before reading data);
+    `indexed`: a table that may leave `t` out (read_csv_stream)."""
     try:
         with path.open(encoding="utf-8-sig", newline="") as f:
             reader = csv.reader(f)
             for row in reader:
                 if _is_data(row):
                     header = [h.strip() for h in row]
+                    if indexed and header[0] != "t":
+                        header = ["t", *header]
                     _check_header(path, reader.line_num, header)
                     return tuple(header[1:])
     except (OSError, UnicodeDecodeError):

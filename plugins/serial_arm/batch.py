@@ -34,51 +34,69 @@ class Poses:
 
 
 class BatchChain:
-    """A SerialChain's product of exponentials: placements, joint twists and tool frame as arrays."""
+    """A SerialChain's product of exponentials along its tool's path: placements, joint twists, the map from the
+    listed joint values to the path's (couplings) and the tool frame, as arrays."""
 
     def __init__(self, chain: SerialChain):
         model = chain.model
         self.n = chain.n
-        self.order = [int(j) for j in np.argsort(chain.jids)]  # listed joint indices in chain order
-        jids = [chain.jids[j] for j in self.order]
-        for parent, jid in zip([0] + jids[:-1], jids):
-            if model.parents[jid] != parent:
-                raise ValueError(f"joint {model.names[jid]!r} does not follow {model.names[parent]!r}: not a serial chain")
-        data = model.createData()
-        pin.forwardKinematics(model, data, pin.neutral(model))
-        self.placements = np.array([chain.nominal[j].homogeneous for j in self.order])
-        self.twists = np.array([np.asarray(data.joints[jid].S).ravel()[PIN_TO_GTSAM] for jid in jids])
+        self.path = list(chain.path)
+        for parent, jid in zip([0] + self.path[:-1], self.path):
+            if model.parents[jid] != parent:  # supports are a path: a safeguard against a model Pinocchio changed
+                raise ValueError(f"joint {model.names[jid]!r} does not follow {model.names[parent]!r}: not a chain")
+        listed = {jid: j for j, jid in enumerate(chain.jids)}
+        coupled = {jid: c for c, jid in enumerate(chain.coupled_jids)}
+        # the path joints' values v = q_listed @ values + value_offset (a listed joint: its own; coupled: the coupling)
+        self.values = np.zeros((self.n, len(self.path)))
+        self.value_offset = np.zeros(len(self.path))
+        self.listed_at: dict[int, int] = {}  # listed joint index -> its position on the path
+        for pos, jid in enumerate(self.path):
+            if jid in listed:
+                self.values[listed[jid], pos] = 1.0
+                self.listed_at[listed[jid]] = pos
+            else:
+                self.values[:, pos] = chain.coupling[coupled[jid]]
+                self.value_offset[pos] = chain.coupling_offset[coupled[jid]]
+        self.placements = np.array([model.jointPlacements[jid].homogeneous for jid in self.path]).reshape(-1, 4, 4)
+        for j, pos in self.listed_at.items():
+            self.placements[pos] = chain.nominal[j].homogeneous
+        self.twists = np.array([chain.unit_twist(jid) for jid in self.path]).reshape(-1, 6)
         self.tool = model.frames[chain.tool_id].placement.homogeneous
         self.base_T_universe = chain.base_T_universe
 
     def flange(self, q: np.ndarray, deltas: dict[int, np.ndarray], jacobians: bool = False):
         """base_T_tool (N, 4, 4) at joint values q (N, n; offsets added) with placement errors {joint:
         (6,) or (N, 6)}; with `jacobians` also d twist / d q (N, 6, n) and {joint: d twist / d delta_j
-        (N, 6, 6)} (the tool frame's twist, as SerialChain.flange)."""
+        (N, 6, 6)} (the tool frame's twist, as SerialChain.flange; zero for a joint off the tool's path)."""
         N = len(q)
+        v = q @ self.values + self.value_offset
+        delta_at = {self.listed_at[j]: d for j, d in deltas.items() if j in self.listed_at}
         A = np.broadcast_to(self.base_T_universe, (N, 4, 4))
         before, after = [], []
-        for pos, j in enumerate(self.order):
+        for pos in range(len(self.path)):
             P = self.placements[pos]
-            if j in deltas:
-                P = P @ lie.exp(np.asarray(deltas[j], float))
+            if pos in delta_at:
+                P = P @ lie.exp(np.asarray(delta_at[pos], float))
             A = A @ P
             before.append(A)
-            A = A @ lie.exp(q[:, j, None] * self.twists[pos])
+            A = A @ lie.exp(v[:, pos, None] * self.twists[pos])
             after.append(A)
         T = A @ self.tool
         if not jacobians:
             return T, None, None
         T_inv = lie.inverse(T)
-        J = np.zeros((N, 6, self.n))
-        placement_blocks = {}
-        for pos, j in enumerate(self.order):
+        J_path = np.zeros((N, 6, len(self.path)))
+        for pos in range(len(self.path)):
             X = T_inv @ after[pos]  # Ad(X) S_j, written out: [R w; p x (R w) + R v]
-            w, v = X[:, :3, :3] @ self.twists[pos, :3], X[:, :3, :3] @ self.twists[pos, 3:]
-            J[:, :3, j] = w
-            J[:, 3:, j] = np.cross(X[:, :3, 3], w) + v
-            if j in deltas:
-                placement_blocks[j] = _times(lie.adjoint(T_inv @ before[pos]), lie.jr(np.asarray(deltas[j], float)))
+            w, u = X[:, :3, :3] @ self.twists[pos, :3], X[:, :3, :3] @ self.twists[pos, 3:]
+            J_path[:, :3, pos] = w
+            J_path[:, 3:, pos] = np.cross(X[:, :3, 3], w) + u
+        J = J_path @ self.values.T
+        placement_blocks = {}
+        for j, d in deltas.items():
+            pos = self.listed_at.get(j)
+            placement_blocks[j] = np.zeros((N, 6, 6)) if pos is None else \
+                _times(lie.adjoint(T_inv @ before[pos]), lie.jr(np.asarray(d, float)))
         return T, J, placement_blocks
 
 

@@ -7,17 +7,21 @@ LOCAL frame; Pinocchio orders its twists [linear, angular]).
 
 The chain's model: the URDF reduced to the listed joints, the joints coupled to them (a URDF <mimic>, or a
 description's linear coupling q_c = offset + sum_i k_i q_i of listed joints) and nothing else: a joint that moves
-the tool must be listed, coupled or locked at a stated value; one that does not is locked at its neutral value.
-Its configuration is one value per listed joint (rad, or m for a prismatic joint):
+a tool frame must be listed, coupled or locked at a stated value; one that does not is locked at its neutral value.
+Its configuration is one value per listed joint (rad, or m for a prismatic joint). A robot may have several tool
+frames (two hands on one torso): every listed joint moves at least one of them, and each tool's pose depends on the
+joints on its path from the root only:
 
-    base_T_tool(q) = base_T_universe * prod_j [ parent_T_joint_j Exp(delta_j) * M_j(q_j + dq_j) ] * joint_T_tool
+    base_T_tool(q) = base_T_universe * prod_{j on the path} [ parent_T_joint_j Exp(delta_j) * M_j(v_j) ] * joint_T_tool
 
-with delta_j the placement error of joint j (a twist in joint j's frame before it moves) and dq_j
-its offset; both zero give the URDF's own forward kinematics.
+with v_j = q_j + dq_j for a listed joint (dq_j its offset), v_j = offset + sum_i k_i (q_i + dq_i) for a coupled one,
+delta_j the placement error of listed joint j (a twist in joint j's frame before it moves); zero errors give the
+URDF's own forward kinematics.
 """
 
 from __future__ import annotations
 
+import copy
 import os
 import sys
 import tempfile
@@ -99,45 +103,51 @@ def urdf_mimics(path: Path) -> list[Coupling]:
 
 
 class SerialChain:
-    """A URDF arm between `base_frame` and `tool_frame`, moved by `joints` (in that order), with `couplings` (joints
-    moved by listed ones) and `locked` ({joint: value} held at a stated value)."""
+    """A URDF arm between `base_frame` and its tool frame(s), moved by `joints` (in that order), with `couplings`
+    (joints moved by listed ones) and `locked` ({joint: value} held at a stated value). It computes the pose of one
+    tool frame (the first of `tool_frames`); `for_tool(frame)` is the same chain computing another's."""
 
-    def __init__(self, model: pin.Model, base_frame: str, tool_frame: str, joints: list[str],
+    def __init__(self, model: pin.Model, base_frame: str, tool_frames: str | tuple[str, ...], joints: list[str],
                  couplings: tuple[Coupling, ...] = (), locked: tuple[tuple[str, float], ...] = ()):
-        for key, frame in (("base_frame", base_frame), ("tool_frame", tool_frame)):
+        tool_frames = (tool_frames,) if isinstance(tool_frames, str) else tuple(tool_frames)
+        for key, frame in (("base_frame", base_frame),) + tuple(("tool_frame", f) for f in tool_frames):
             if not model.existFrame(frame):
                 raise ChainError(key, f"the URDF has no frame {frame!r}")
         missing = [j for j in joints if not model.existJointName(j)]
         if missing:
             raise ChainError("joints", f"the URDF has no joint {missing[0]!r}; its joints: "
                              f"{', '.join(list(model.names)[1:])}")
-        reference = self._check_couplings_and_locks(model, tool_frame, joints, couplings, dict(locked))
+        reference = self._check_couplings_and_locks(model, tool_frames, joints, couplings, dict(locked))
         kept = set(joints) | {c.joint for c in couplings}
         lock = [jid for jid in range(1, model.njoints) if model.names[jid] not in kept]
         self.model = pin.buildReducedModel(model, lock, reference) if lock else model
         self.data = self.model.createData()
         self.joint_names = list(joints)
+        self.tool_frames = tool_frames
         self.jids = [self.model.getJointId(j) for j in joints]
         wrong = [(j, self.model.joints[jid].nv) for j, jid in zip(joints, self.jids) if self.model.joints[jid].nv != 1]
         if wrong:
             raise ChainError("joints", f"joint {wrong[0][0]!r} has {wrong[0][1]} degrees of freedom; a serial arm's "
                              "joints have one each")
         self.idx_v = [self.model.joints[jid].idx_v for jid in self.jids]
-        # coupled joints: their velocity index, their rows of dq_coupled / dq (n), and their offsets
-        self.coupled_v = [self.model.joints[self.model.getJointId(c.joint)].idx_v for c in couplings]
+        # coupled joints: their ids and velocity index, their rows of dq_coupled / dq (n), and their offsets
+        self.coupled_jids = [self.model.getJointId(c.joint) for c in couplings]
+        self.coupled_v = [self.model.joints[jid].idx_v for jid in self.coupled_jids]
         self.coupling = np.array([[dict(c.leaders).get(j, 0.0) for j in joints] for c in couplings]).reshape(-1, len(joints))
         self.coupling_offset = np.array([c.offset for c in couplings], float)
-        self.tool_id = self.model.getFrameId(tool_frame)
-        base_id = self.model.getFrameId(base_frame)
-        moving = set(moving_joints(self.model, tool_frame))
+        moving = set().union(*(moving_joints(self.model, f) for f in tool_frames))
+        moving |= {lead for c in couplings if c.joint in moving for lead, _ in c.leaders}
         unmoved = [j for j in joints if j not in moving]
         if unmoved:
-            raise ChainError("joints", f"joint {unmoved[0]!r} does not move tool_frame {tool_frame!r}")
+            what = f"tool_frame {tool_frames[0]!r}" if len(tool_frames) == 1 else \
+                f"any tool frame ({', '.join(tool_frames)})"
+            raise ChainError("joints", f"joint {unmoved[0]!r} does not move {what}")
+        base_id = self.model.getFrameId(base_frame)
         if self.model.frames[base_id].parentJoint != 0:
             raise ChainError("base_frame", f"base_frame {base_frame!r} moves with the joints; it must come before "
                              "the first one")
         self.nominal = [self.model.jointPlacements[jid].copy() for jid in self.jids]
-        self._perturbed: set[int] = set()
+        self._perturbed: set[int] = set()  # shared with for_tool's chains: they share the model
         self._plain = self.model.nq == self.model.nv  # no continuous (cos, sin) joints: q is the angles
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         self.universe_T_base = pin.updateFramePlacement(self.model, self.data, base_id).homogeneous
@@ -145,11 +155,39 @@ class SerialChain:
         self.prismatic = [self.model.joints[jid].shortname().startswith("JointModelP") for jid in self.jids]
         self.lower = np.array([self.model.lowerPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
         self.upper = np.array([self.model.upperPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
+        self._tools: dict[str, SerialChain] = {}
+        self._select(tool_frames[0])
+
+    def _select(self, frame: str) -> None:
+        """Compute `frame`'s pose: its id, the joints on its path from the root (reduced model's ids, root first),
+        and the listed joints that move it (`active`: on the path, or leading a coupled joint on it)."""
+        self.tool_frame = frame
+        self.tool_id = self.model.getFrameId(frame)
+        self.path = [int(j) for j in self.model.supports[self.model.frames[self.tool_id].parentJoint] if j != 0]
+        on_path = set(self.path)
+        leads = self.coupling[[c for c, jid in enumerate(self.coupled_jids) if jid in on_path]]
+        self.active = tuple(i for i, jid in enumerate(self.jids) if jid in on_path or np.any(leads[:, i] != 0))
+        self._batch = None
+        self._tools[frame] = self
+
+    def for_tool(self, frame: str) -> "SerialChain":
+        """The chain computing tool frame `frame` (one of `tool_frames`), sharing this one's model."""
+        if frame not in self._tools:
+            if frame not in self.tool_frames:
+                raise ChainError("tool_frame", f"{frame!r} is not one of the robot's tool frames: "
+                                 f"{', '.join(self.tool_frames)}")
+            copy.copy(self)._select(frame)
+        return self._tools[frame]
+
+    def unit_twist(self, jid: int) -> np.ndarray:
+        """The motion axis of joint `jid` (reduced model) as a unit twist in GTSAM order (rotation, translation)."""
+        return np.asarray(self.data.joints[jid].S).ravel()[PIN_TO_GTSAM]
 
     @staticmethod
-    def _check_couplings_and_locks(model: pin.Model, tool_frame: str, joints: list[str], couplings, locked: dict):
+    def _check_couplings_and_locks(model: pin.Model, tool_frames: tuple[str, ...], joints: list[str], couplings,
+                                   locked: dict):
         """ChainError unless every coupled or locked joint exists, is not listed, couples one-degree-of-freedom
-        listed leaders, and every joint that moves the tool is listed, coupled or locked. Returns the reference
+        listed leaders, and every joint that moves a tool frame is listed, coupled or locked. Returns the reference
         configuration the other joints are held at (neutral, locked ones at their values)."""
         for c in couplings:
             if not model.existJointName(c.joint):
@@ -167,11 +205,11 @@ class SerialChain:
             if not model.existJointName(name) or name in joints:
                 raise ChainError("locked", f"{name!r} is not a joint of the URDF outside `joints`")
         free = {c.joint for c in couplings} | set(joints) | set(locked)
-        silent = [name for name in moving_joints(model, tool_frame) if name not in free]
+        silent = [(name, f) for f in tool_frames for name in moving_joints(model, f) if name not in free]
         if silent:
-            raise ChainError("joints", f"joint {silent[0]!r} moves tool_frame {tool_frame!r} but is not in `joints`: "
+            raise ChainError("joints", f"joint {silent[0][0]!r} moves tool_frame {silent[0][1]!r} but is not in `joints`: "
                              "list it, couple it (`couplings:`, or a <mimic> in the URDF), or hold it at a stated "
-                             f"value (`locked: {{{silent[0]}: 0.0}}`)")
+                             f"value (`locked: {{{silent[0][0]}: 0.0}}`)")
         reference = pin.neutral(model)
         for name, value in locked.items():
             joint = model.joints[model.getJointId(name)]
@@ -182,7 +220,7 @@ class SerialChain:
         return reference
 
     @classmethod
-    def from_urdf(cls, path: Path, base_frame: str, tool_frame: str, joints: list[str],
+    def from_urdf(cls, path: Path, base_frame: str, tool_frames: str | tuple[str, ...], joints: list[str],
                   couplings: tuple[Coupling, ...] = (), locked: tuple[tuple[str, float], ...] = ()) -> "SerialChain":
         """ChainError("urdf", ...) when Pinocchio cannot read the file (with what its parser printed). The URDF's
         <mimic> joints that move the tool are couplings unless the description lists, couples or locks them."""
@@ -194,9 +232,10 @@ class SerialChain:
                 raise ChainError("urdf", f"not a URDF Pinocchio can read: {str(exc).strip()}"
                                  + (f" ({said})" if said else "")) from None
         given = {c.joint for c in couplings} | set(dict(locked)) | set(joints)
-        moving = set(moving_joints(model, tool_frame))  # a mimic joint that does not move the tool (a finger) is held
+        frames = (tool_frames,) if isinstance(tool_frames, str) else tuple(tool_frames)
+        moving = {j for f in frames for j in moving_joints(model, f)}  # a mimic moving no tool (a finger) is held
         mimics = tuple(c for c in urdf_mimics(path) if c.joint not in given and c.joint in moving)
-        return cls(model, base_frame, tool_frame, joints, tuple(couplings) + mimics, locked)
+        return cls(model, base_frame, frames, joints, tuple(couplings) + mimics, locked)
 
     @property
     def n(self) -> int:
@@ -214,14 +253,15 @@ class SerialChain:
             self.model.jointPlacements[self.jids[j]] = self.nominal[j]
         for j, delta in placements.items():
             self.model.jointPlacements[self.jids[j]] = self.nominal[j] * exp_twist(delta)
-        self._perturbed = set(placements)
+        self._perturbed.clear()
+        self._perturbed.update(placements)
 
     def joint_positions(self, q: np.ndarray) -> np.ndarray:
-        """Origins of the moving joints and of the tool frame (n + 1, 3) in the base frame (m), nominal
-        placements, at joint values q."""
+        """Origins of the joints on the tool's path and of the tool frame (len(path) + 1, 3) in the base frame (m),
+        nominal placements, at joint values q."""
         self._set_placements({})
         pin.forwardKinematics(self.model, self.data, self._configuration(np.asarray(q, float)))
-        universe = [self.data.oMi[jid].homogeneous for jid in self.jids]
+        universe = [self.data.oMi[jid].homogeneous for jid in self.path]
         universe.append(pin.updateFramePlacement(self.model, self.data, self.tool_id).homogeneous)
         return np.array([(self.base_T_universe @ T)[:3, 3] for T in universe])
 
@@ -241,7 +281,11 @@ class SerialChain:
         J = full[:, self.idx_v] + (full[:, self.coupled_v] @ self.coupling if self.coupled_v else 0.0)
         tool_T_universe = lie.inverse(universe_T_tool)
         blocks = []
+        on_path = set(self.path)
         for j, jid in enumerate(self.jids):  # joint j's frame before it moves: universe_T_parent * parent_T_joint
+            if jid not in on_path:  # it does not move this tool
+                blocks.append(np.zeros((6, 6)))
+                continue
             before = (data.oMi[model.parents[jid]] * model.jointPlacements[jid]).homogeneous
             block = lie.adjoint(tool_T_universe @ before)  # d twist / d (right perturbation of the placement)
             if j in self._perturbed:  # Exp(delta + d) = Exp(delta) Exp(Jr(delta) d)

@@ -21,7 +21,7 @@ from fusionkit.api import gaussian, Spec
 from .frames import frame_fit
 from .identifiability import analyze, kinematic_regressor
 from .kinematics import Layout, parameters_of
-from .model import AXIS_NAMES, arm_of, group_joints
+from .model import AXIS_NAMES, group_joints
 from .residuals import held_axes_residual
 
 HOLD_SIGMA = 1e-9  # prior sigma (SI units per axis) holding an unidentifiable parameter at its nominal value
@@ -96,15 +96,15 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
     """The regressor of all marker entries (columns: every parameter axis any of them uses, not fixed, in
     priority order), each column's (role, parameter, index, axis position, label, unit), the states at
     which each parameter is used, and the number of configurations."""
-    from .factors import FACTOR_TYPES
+    from .factors import FACTOR_TYPES, entry_arm
     types = {cls.name: cls() for cls in FACTOR_TYPES}
-    chain = arm_of(desc).chain
     columns: dict[tuple, int] = {}
     info: list[tuple] = []
     pieces, used_ks, configurations = [], {}, set()
     for entry in entries:
         ftype = types[entry.type]
         layout, variables = ftype.layout(ctx, entry)
+        chain = entry_arm(desc, entry).chain
         ks, rows = ftype.samples(ctx, entry)
         if not len(ks):
             continue

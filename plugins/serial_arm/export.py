@@ -23,11 +23,10 @@ from .lazy_pinocchio import pin
 from fusionkit.api import RobotDescription
 
 from fusionkit.api import lie
-from .batch import batch_chain
 from .chain import SerialChain
 from .factors import entry_layout
-from .kinematics import Layout, Parameters, joint_deltas, parameters_of
-from .model import arm_of
+from .kinematics import joint_deltas, parameters_of
+from .model import arm_of, tool_frames
 from .urdf import urdf_path
 
 MEASUREMENT_FRAME = "measurement_frame"  # the new root link: the frame the tracker measures in
@@ -86,34 +85,36 @@ def _fixed_joint(name: str, parent: str, child: str, T: np.ndarray, indent: str)
     return joint
 
 
-def calibrated_urdf(text: str, chain: SerialChain, layout: Layout, p: Parameters, note: str) -> str:
-    """The URDF `text` of `chain` with the parameters `p` of `layout` built in (module docstring) and
-    the comment `note` (plus the names of the added links) at the top of `<robot>`."""
+def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple[float, np.ndarray]], base: np.ndarray,
+                    markers: dict[str, np.ndarray], note: str) -> str:
+    """The URDF `text` of `chain` with its calibrated parameters built in (module docstring): `joint_errors` {joint
+    id in chain.model: (offset, placement twist)}, the base B, a marker pose M per tool frame; the comment `note`
+    (plus the names of the added links) at the top of `<robot>`."""
     prolog = text[:text.find("<robot")] if "<robot" in text else ""
     robot = ET.fromstring(text, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     joints = {j.get("name"): j for j in robot.findall("joint")}
     links = {link.get("name") for link in robot.findall("link")}
-    dq, deltas = joint_deltas(layout, p, chain.n)
-    bc = batch_chain(chain)
-    for j in sorted(set(layout.offsets) | set(deltas)):
-        twist = bc.twists[bc.order.index(j)]
-        element = joints[chain.joint_names[j]]
-        delta = deltas.get(j, np.zeros(6))
-        set_origin(element, origin_matrix(element) @ lie.exp(delta) @ lie.exp(dq[j] * twist))
+    for jid, (dq, delta) in sorted(joint_errors.items()):
+        element = joints[chain.model.names[jid]]
+        twist = chain.unit_twist(jid)
+        set_origin(element, origin_matrix(element) @ lie.exp(delta) @ lie.exp(dq * twist))
     children = {j.find("child").get("link") for j in joints.values()}
     root = next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
-    B = np.eye(4) if p.base is None else p.base
-    M = np.eye(4) if p.tool is None else p.tool
-    tool = chain.model.frames[chain.tool_id].name
-    tool_link = tool if tool in links else joints[tool].find("child").get("link")  # a joint's frame is its child's
     taken = links | set(joints)
-    meas, marker = _free(MEASUREMENT_FRAME, taken), _free(MARKER, taken)
+    meas = _free(MEASUREMENT_FRAME, taken)
     indent = robot.text if robot.text and not robot.text.strip() else "\n  "
     added = [ET.Element("link", name=meas),
-             _fixed_joint(_free(f"{meas}_joint", taken), meas, root, B @ chain.base_T_universe, indent),
-             ET.Element("link", name=marker),
-             _fixed_joint(_free(f"{marker}_joint", taken), tool_link, marker, M, indent)]
-    note += f" Added: link {meas} (the measurement frame, parent of {root}) and link {marker} (on {tool_link})."
+             _fixed_joint(_free(f"{meas}_joint", taken), meas, root, base @ chain.base_T_universe, indent)]
+    said = [f"link {meas} (the measurement frame, parent of {root})"]
+    for frame, M in markers.items():
+        tool_link = frame if frame in links else joints[frame].find("child").get("link")  # a joint's frame: its child's
+        marker = _free(MARKER if len(markers) == 1 else f"{MARKER}_{frame}", taken)
+        taken.add(marker)
+        added += [ET.Element("link", name=marker), _fixed_joint(_free(f"{marker}_joint", taken), tool_link, marker, M,
+                                                                indent)]
+        taken.add(f"{marker}_joint")
+        said.append(f"link {marker} (on {tool_link})")
+    note += f" Added: {' and '.join(said)}."
     comment = ET.Comment(f" {note.replace('--', '- -')} ")  # "--" may not appear in an XML comment
     robot.insert(0, comment)
     for element in [comment, *added]:
@@ -124,17 +125,38 @@ def calibrated_urdf(text: str, chain: SerialChain, layout: Layout, p: Parameters
     return prolog + ET.tostring(robot, encoding="unicode") + "\n"
 
 
+def calibrated_errors(calibrated: RobotDescription) -> tuple[SerialChain, dict, np.ndarray, dict[str, np.ndarray], list]:
+    """(chain, {joint id: (offset, placement twist)}, base B, {tool frame: marker M}, variables) of a calibrated
+    description, every tool frame's joints together; M = I for a tool frame without a marker parameter. A coupled
+    joint moves by its coupling of its leaders' offsets (its value stays the coupling of the readings)."""
+    errors: dict[int, tuple[float, np.ndarray]] = {}
+    markers, variables, base = {}, [], np.eye(4)
+    for frame in tool_frames(calibrated.extra):
+        arm = arm_of(calibrated, frame)
+        tool = calibrated.parameters[arm.tool].vartype.name if arm.tool else ""
+        layout, names = entry_layout(arm, {}, tool)
+        p = parameters_of(layout, [calibrated.parameters[name].values[index or 0] for name, index in names])
+        dq, deltas = joint_deltas(layout, p, arm.chain.n)
+        for j in set(layout.offsets) | set(deltas):
+            errors[arm.chain.jids[j]] = (float(dq[j]), deltas.get(j, np.zeros(6)))
+        for jid, row in zip(arm.chain.coupled_jids, arm.chain.coupling):
+            if jid in arm.chain.path and row @ dq:
+                errors[jid] = (float(row @ dq), np.zeros(6))
+        base = np.eye(4) if p.base is None else p.base
+        markers[frame] = np.eye(4) if p.tool is None else p.tool
+        variables += names
+    return arm.chain, errors, base, markers, list(dict.fromkeys(variables))
+
+
 def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
     """{`robots/<robot>.urdf`: the description's URDF with its calibrated parameters built in}: the
     serial_arm model's output of `fusionkit run` (RobotModel.outputs)."""
-    arm = arm_of(calibrated)
-    tool = calibrated.parameters[arm.tool].vartype.name if arm.tool else ""
-    layout, variables = entry_layout(arm, {}, tool)
-    p = parameters_of(layout, [calibrated.parameters[name].values[index or 0] for name, index in variables])
+    chain, errors, base, markers, variables = calibrated_errors(calibrated)
     source = urdf_path(str(calibrated.extra["urdf"]), Path(calibrated.doc.file).parent)
     drifting = sorted({name for name, _ in variables if calibrated.parameters[name].time_varying})
     note = (f"fusionkit: robot {robot!r} ({calibrated.name}) calibrated, from {source.name}. Joints with an offset or "
             "a placement error: origin = URDF origin * Exp(placement error) * the joint's motion by its offset, so "
-            "the joint value is the encoder reading."
+            "the joint value is the encoder reading (a coupled joint's: its coupling of the readings)."
             + (f" Time-varying parameters at their last estimated value: {', '.join(drifting)}." if drifting else ""))
-    return {f"robots/{robot}.urdf": calibrated_urdf(source.read_text(encoding="utf-8"), arm.chain, layout, p, note)}
+    return {f"robots/{robot}.urdf": calibrated_urdf(source.read_text(encoding="utf-8"), chain, errors, base, markers,
+                                                    note)}

@@ -18,25 +18,33 @@ from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, Fa
 from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
 from fusionkit.api import lie
-from .model import arm_of, chain_from
+from .model import arm_of, chain_from, marker_of, tool_frames
 from .urdf import PREFIX, urdf_path
 
 NAME = {"type": "string"}
+TOOL_FRAME = {"type": "string"}  # the description's tool frame the entry measures (required when it has several)
 SIGMA = {"type": "number", "exclusiveMinimum": 0}
 
 
 def entry_layout(arm, spec: Spec, tool_type: str, base: bool = True) -> tuple[Layout, list[tuple[str, int | None]]]:
     """The layout of an entry's kinematic variables and each one's (parameter, element): the entry's
-    `base`/`tool` (else the description's kinematics), every offset and placement group."""
+    `base`/`tool` (else the description's kinematics), the elements of every offset and placement group whose
+    joint moves the arm's tool frame (the other hand's joints do not enter this hand's factors)."""
     base_name = spec.get("base", arm.base) if base else None
     tool_name = spec.get("tool", arm.tool)
     variables: list[tuple[str, int | None]] = [(base_name, None)] if base_name else []
     variables += [(tool_name, None)] if tool_name else []
-    offsets = tuple(j for g in arm.offsets for j in g.joints)
-    variables += [(g.parameter, i) for g in arm.offsets for i in range(len(g.joints))]
-    placements = tuple((j, g.axes) for g in arm.placements for j in g.joints)
-    variables += [(g.parameter, i) for g in arm.placements for i in range(len(g.joints))]
+    active = set(arm.chain.active)
+    offsets = tuple(j for g in arm.offsets for j in g.joints if j in active)
+    variables += [(g.parameter, i) for g in arm.offsets for i, j in enumerate(g.joints) if j in active]
+    placements = tuple((j, g.axes) for g in arm.placements for j in g.joints if j in active)
+    variables += [(g.parameter, i) for g in arm.placements for i, j in enumerate(g.joints) if j in active]
     return Layout(bool(base_name), tool_type if tool_name else "", offsets, placements), variables
+
+
+def entry_arm(desc, spec: Spec):
+    """The description seen from the entry's tool frame (`tool_frame:`, default the description's only one)."""
+    return arm_of(desc, spec.get("tool_frame"))
 
 
 def parameter_keys(ctx, robot: str, variables: list[tuple[str, int | None]], k: int) -> list[int]:
@@ -44,10 +52,20 @@ def parameter_keys(ctx, robot: str, variables: list[tuple[str, int | None]], k: 
 
 
 def check_arm_entry(spec: Spec, scope, tools: tuple[str, ...] = ("pose3",), base: bool = True):
-    """A serial_arm robot with joint-vector states; the entry's base and tool name pose parameters."""
+    """A serial_arm robot with joint-vector states; the entry names one of its tool frames when it has several; the
+    entry's base and tool name pose parameters."""
     desc = scope.require_model(spec, "robot", "serial_arm")
     scope.require_states(spec, "robot", f"vector{len(desc.extra['joints'])}")
-    kin = desc.extra.get("kinematics") or {}
+    frames = tool_frames(desc.extra)
+    frame = spec.get("tool_frame")
+    if frame is None and len(frames) > 1:
+        raise spec.error("robot", f"robot {spec['robot']!r} has several tool frames ({', '.join(frames)}): name the "
+                         "one this entry measures (`tool_frame:`)")
+    if frame is not None and frame not in frames:
+        raise spec.error("tool_frame", f"{frame!r} is not a tool frame of robot {spec['robot']!r}: "
+                         f"{', '.join(frames)}")
+    kin = {"base": (desc.extra.get("kinematics") or {}).get("base"),
+           "tool": marker_of(desc.extra, frame or frames[0])}
     for key, types in (("base", ("pose3",)), ("tool", tools)):
         if key == "base" and not base:
             continue
@@ -56,7 +74,7 @@ def check_arm_entry(spec: Spec, scope, tools: tuple[str, ...] = ("pose3",), base
             vartype = desc.parameters[spec[key]].vartype.name
             if vartype not in types or desc.parameters[spec[key]].indexed:
                 raise spec.error(key, f"parameter {spec[key]!r} is {vartype}; a {key} is one {' or '.join(types)}")
-        elif key in kin and desc.parameters[kin[key]].vartype.name not in types:
+        elif kin[key] and desc.parameters[kin[key]].vartype.name not in types:
             raise spec.error("robot", f"the description's kinematics.{key} {kin[key]!r} is a "
                              f"{desc.parameters[kin[key]].vartype.name}; {spec.type} needs a {' or '.join(types)} "
                              f"(name one with `{key}:`)")
@@ -64,7 +82,7 @@ def check_arm_entry(spec: Spec, scope, tools: tuple[str, ...] = ("pose3",), base
 
 
 def tool_type(desc, spec: Spec) -> str:
-    name = spec.get("tool", (desc.extra.get("kinematics") or {}).get("tool"))
+    name = spec.get("tool", marker_of(desc.extra, spec.get("tool_frame") or tool_frames(desc.extra)[0]))
     return desc.parameters[name].vartype.name if name else ""
 
 
@@ -93,7 +111,7 @@ class ArmMeasurement(FactorType):
 
     def layout(self, ctx, spec: Spec):
         desc = ctx.robot(spec["robot"])
-        return entry_layout(arm_of(desc), spec, tool_type(desc, spec), self.kind != "relative")
+        return entry_layout(entry_arm(desc, spec), spec, tool_type(desc, spec), self.kind != "relative")
 
     def sigmas(self, spec: Spec) -> np.ndarray:
         return np.asarray(pose_sigmas(spec["sigma"], False), float)
@@ -110,7 +128,7 @@ class ArmMeasurement(FactorType):
     def build(self, ctx, spec: Spec) -> None:
         """One factor per sample, all evaluated together by one EntryEvaluator."""
         robot = spec["robot"]
-        chain = arm_of(ctx.robot(robot)).chain
+        chain = entry_arm(ctx.robot(robot), spec).chain
         layout, variables = self.layout(ctx, spec)
         noise = ctx.noise(self.sigmas(spec), spec)
         ks, rows = self.samples(ctx, spec)
@@ -139,6 +157,7 @@ class ToolPose(ArmMeasurement):
     kind = "pose"
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "sigma": POSE_SIGMA_SCHEMA, "base": NAME, "tool": NAME,
+                             "tool_frame": TOOL_FRAME,
                              "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 
@@ -166,6 +185,7 @@ class ToolPosition(ArmMeasurement):
     kind = "position"
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "sigma": SIGMA, "base": NAME, "tool": NAME,
+                             "tool_frame": TOOL_FRAME,
                              "columns": {"type": "array", "items": NAME, "minItems": 3, "maxItems": 3,
                                          "uniqueItems": True, "default": ["x", "y", "z"]},
                              "tolerance": TOLERANCE_SCHEMA},
@@ -200,6 +220,7 @@ class RelativeToolPose(ArmMeasurement):
     kind = "relative"
     schema = {"type": "object",
               "properties": {"robot": NAME, "stream": NAME, "sigma": POSE_SIGMA_SCHEMA, "tool": NAME,
+                             "tool_frame": TOOL_FRAME,
                              "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream", "sigma"], "additionalProperties": False}
 

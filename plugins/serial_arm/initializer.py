@@ -25,9 +25,9 @@ import numpy as np
 from fusionkit.api import POSE_COLUMNS, TOLERANCE_SCHEMA, Initializer, Spec, nearest
 
 from .batch import marker_poses
-from .factors import check_arm_entry, entry_layout, pose_matrices
+from .factors import TOOL_FRAME, check_arm_entry, entry_arm, entry_layout, pose_matrices
 from .kinematics import Layout, Parameters
-from .model import arm_of
+from .model import marker_of, tool_frames
 
 NAME = {"type": "string"}
 DEGENERATE = 1e-6  # relative singular value below which the rotations leave a second solution open
@@ -87,21 +87,23 @@ class HandEye(Initializer):
     robot_fields = ("robot",)
     stream_fields = ("stream",)
     schema = {"type": "object",
-              "properties": {"robot": NAME, "stream": NAME, "base": NAME, "tool": NAME, "tolerance": TOLERANCE_SCHEMA},
+              "properties": {"robot": NAME, "stream": NAME, "base": NAME, "tool": NAME, "tool_frame": TOOL_FRAME,
+                             "tolerance": TOLERANCE_SCHEMA},
               "required": ["robot", "stream"], "additionalProperties": False}
 
     def check(self, spec: Spec, scope) -> None:
         """A serial_arm with a pose3 base or tool (the entry's, else the description's) and a pose stream."""
         desc = check_arm_entry(spec, scope)
         kin = desc.extra.get("kinematics") or {}
-        if not spec.get("base", kin.get("base")) and not spec.get("tool", kin.get("tool")):
+        marker = marker_of(desc.extra, spec.get("tool_frame") or tool_frames(desc.extra)[0])
+        if not spec.get("base", kin.get("base")) and not spec.get("tool", marker):
             raise spec.error("robot", f"robot {spec['robot']!r} has neither a base nor a tool parameter "
                              "(kinematics.base, kinematics.tool): nothing to initialize")
         scope.require_columns(spec, "stream", POSE_COLUMNS)
 
     def initialize(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        arm = arm_of(ctx.robot(robot))
+        arm = entry_arm(ctx.robot(robot), spec)
         layout, variables = entry_layout(arm, spec, "pose3" if spec.get("tool", arm.tool) else "")
         stream = ctx.stream(spec["stream"])
         match = nearest(ctx.state_set(robot, spec).t, stream.t, spec["tolerance"])

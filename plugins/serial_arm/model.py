@@ -4,7 +4,7 @@ kinematic parameters (docs/reference/robot_description.md#model-serial_arm).
     model: serial_arm
     urdf: example-robot-data:ur10      # or a file relative to the description
     base_frame: base_link              # the URDF frame the arm stands on (FK starts here)
-    tool_frame: tool0                  # the flange
+    tool_frame: tool0                  # the flange; several: [left_hand, right_hand] (entries name theirs)
     joints: [shoulder_pan_joint, ...]  # the joint-state vector, in this order
     couplings:                         # optional: joints moved by listed ones (a URDF <mimic> is one too)
       - {joint: torso_c, of: {torso_a: -1.0, torso_b: -1.0}, offset: 0.0}   # q_c = offset + sum k q (rad or m)
@@ -12,7 +12,8 @@ kinematic parameters (docs/reference/robot_description.md#model-serial_arm).
                                        # coupled or locked; the others are held at their neutral value)
     kinematics:                        # every key optional
       base: base                       # pose3: base_frame in the measurement frame
-      tool: marker                     # pose3 (or point3): the marker in the tool frame
+      tool: marker                     # pose3 (or point3): the marker in the tool frame; with several tool
+                                       # frames, one per frame: {left_hand: marker_left, right_hand: marker_right}
       joint_offsets:                   # scalar parameters, one value per listed joint (rad; m if prismatic)
         - {parameter: joint_offsets, joints: [shoulder_pan_joint, ...]}
       placements:                      # vectorN parameters, one value per listed joint, N = len(axes)
@@ -59,7 +60,8 @@ class Group:
 
 @dataclass(frozen=True)
 class Arm:
-    """A validated serial_arm description: its chain and its kinematic parameters."""
+    """A validated serial_arm description seen from one of its tool frames: the chain computing that frame's pose,
+    the base and that frame's marker parameter, every offset and placement group."""
 
     chain: SerialChain
     base: str | None
@@ -68,15 +70,28 @@ class Arm:
     placements: tuple[Group, ...]
 
 
+def tool_frames(extra: dict) -> tuple[str, ...]:
+    """The description's tool frames (`tool_frame`: one name or a list)."""
+    frames = extra["tool_frame"]
+    return (frames,) if isinstance(frames, str) else tuple(frames)
+
+
+def marker_of(extra: dict, frame: str) -> str | None:
+    """The description's marker parameter on tool frame `frame` (`kinematics.tool`: one name, or one per frame)."""
+    tool = (extra.get("kinematics") or {}).get("tool")
+    return tool.get(frame) if isinstance(tool, dict) else tool
+
+
 @lru_cache(maxsize=32)
-def _chain(path: str, mtime: float, base_frame: str, tool_frame: str, joints: tuple[str, ...],
+def _chain(path: str, mtime: float, base_frame: str, tool_frames: tuple[str, ...], joints: tuple[str, ...],
            couplings: tuple[Coupling, ...], locked: tuple[tuple[str, float], ...]) -> SerialChain:
-    return SerialChain.from_urdf(Path(path), base_frame, tool_frame, list(joints), couplings, locked)
+    return SerialChain.from_urdf(Path(path), base_frame, tool_frames, list(joints), couplings, locked)
 
 
-def chain_from(path: Path, base_frame: str, tool_frame: str, joints, couplings=(), locked=()) -> SerialChain:
-    """The chain of a URDF file (loaded once while the file is unchanged)."""
-    return _chain(str(path), path.stat().st_mtime, base_frame, tool_frame, tuple(joints), tuple(couplings),
+def chain_from(path: Path, base_frame: str, tool_frames, joints, couplings=(), locked=()) -> SerialChain:
+    """The chain of a URDF file (loaded once while the file is unchanged), computing the first tool frame's pose."""
+    frames = (tool_frames,) if isinstance(tool_frames, str) else tuple(tool_frames)
+    return _chain(str(path), path.stat().st_mtime, base_frame, frames, tuple(joints), tuple(couplings),
                   tuple(sorted(dict(locked).items())))
 
 
@@ -94,13 +109,14 @@ def load_chain(desc: RobotDescription) -> SerialChain:
     except FileNotFoundError as exc:
         raise desc.error(("urdf",), str(exc)) from None
     try:
-        return chain_from(path, x["base_frame"], x["tool_frame"], x["joints"], couplings_of(x), x.get("locked", {}))
+        return chain_from(path, x["base_frame"], tool_frames(x), x["joints"], couplings_of(x), x.get("locked", {}))
     except ChainError as exc:
         raise desc.error((exc.key,), f"{path.name}: {exc}") from None
 
 
-def kinematic_groups(extra: dict) -> tuple:
-    """(base, tool, offset groups, placement groups) of a description's model keys."""
+def kinematic_groups(extra: dict, frame: str | None = None) -> tuple:
+    """(base, the marker of tool frame `frame` (default: the first), offset groups, placement groups) of a
+    description's model keys."""
     kin = extra.get("kinematics") or {}
     joints = list(extra["joints"])
 
@@ -108,7 +124,8 @@ def kinematic_groups(extra: dict) -> tuple:
         return tuple(Group(g["parameter"], tuple(joints.index(j) for j in g["joints"]),
                            tuple(AXIS_NAMES.index(a) for a in g.get("axes", ())))
                      for g in kin.get(key, ()))
-    return kin.get("base"), kin.get("tool"), groups("joint_offsets"), groups("placements")
+    return kin.get("base"), marker_of(extra, frame or tool_frames(extra)[0]), groups("joint_offsets"), \
+        groups("placements")
 
 
 def group_joints(extra: dict, parameter: str) -> list[str] | None:
@@ -121,8 +138,10 @@ def group_joints(extra: dict, parameter: str) -> list[str] | None:
     return None
 
 
-def arm_of(desc: RobotDescription) -> Arm:
-    return Arm(load_chain(desc), *kinematic_groups(desc.extra))
+def arm_of(desc: RobotDescription, frame: str | None = None) -> Arm:
+    """The description seen from tool frame `frame` (default: its first)."""
+    chain = load_chain(desc)
+    return Arm(chain.for_tool(frame) if frame else chain, *kinematic_groups(desc.extra, frame))
 
 
 def check_pose_parameter(desc: RobotDescription, path: tuple, name: str, types: tuple[str, ...]) -> None:
@@ -141,11 +160,15 @@ class SerialArmModel(RobotModel):
     summary = "serial arm from a URDF (Pinocchio): joint-vector states, base, tool, joint offsets, placement errors"
     schema = {"type": "object",
               "properties": {"urdf": {"type": "string"}, "base_frame": {"type": "string"},
-                             "tool_frame": {"type": "string"}, "joints": NAMES,
+                             "tool_frame": {"oneOf": [{"type": "string"}, NAMES]}, "joints": NAMES,
                              "couplings": {"type": "array", "items": COUPLING},
                              "locked": {"type": "object", "additionalProperties": {"type": "number"}},
                              "kinematics": {"type": "object",
-                                            "properties": {"base": {"type": "string"}, "tool": {"type": "string"},
+                                            "properties": {"base": {"type": "string"},
+                                                           "tool": {"oneOf": [{"type": "string"},
+                                                                              {"type": "object", "minProperties": 1,
+                                                                               "additionalProperties":
+                                                                                   {"type": "string"}}]},
                                                            "joint_offsets": {"type": "array", "items": OFFSET_GROUP},
                                                            "placements": {"type": "array", "items": PLACEMENT_GROUP}},
                                             "additionalProperties": False}},
@@ -158,8 +181,19 @@ class SerialArmModel(RobotModel):
         kin = desc.extra.get("kinematics") or {}
         if "base" in kin:
             check_pose_parameter(desc, ("kinematics", "base"), kin["base"], ("pose3",))
-        if "tool" in kin:
-            check_pose_parameter(desc, ("kinematics", "tool"), kin["tool"], ("pose3", "point3"))
+        tool = kin.get("tool")
+        if isinstance(tool, dict):
+            frames = tool_frames(desc.extra)
+            for frame, name in tool.items():
+                if frame not in frames:
+                    raise desc.error(("kinematics", "tool", frame), f"{frame!r} is not one of the tool frames "
+                                     f"(tool_frame: {', '.join(frames)})")
+                check_pose_parameter(desc, ("kinematics", "tool", frame), name, ("pose3", "point3"))
+        elif tool is not None:
+            if len(tool_frames(desc.extra)) > 1:
+                raise desc.error(("kinematics", "tool"), "the robot has several tool frames: give one marker "
+                                 "parameter per frame ({frame: parameter}), or none and name it in each entry (`tool:`)")
+            check_pose_parameter(desc, ("kinematics", "tool"), tool, ("pose3", "point3"))
         joints = desc.extra["joints"]
         taken: set = set()
         for key in ("joint_offsets", "placements"):
@@ -184,7 +218,7 @@ class SerialArmModel(RobotModel):
         return next((list(g["axes"]) for g in kin.get("placements", ()) if g["parameter"] == parameter), None)
 
     def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
-        """The arm as a polyline through its joints' origins to the tool frame, at the state's joint vector plus
+        """The arm as polylines through the joints' origins to each tool frame, at the state's joint vector plus
         the calibrated joint offsets, placed by the calibrated base pose (nominal link placements)."""
         arm = arm_of(calibrated)
         q = next((np.asarray(v, float) for k, v in state.items() if k != "pose" and np.size(v) == arm.chain.n), None)
@@ -193,12 +227,14 @@ class SerialArmModel(RobotModel):
         q = q.copy()
         for group in arm.offsets:
             q[list(group.joints)] += np.asarray(calibrated.parameters[group.parameter].values, float).ravel()
-        p = arm.chain.joint_positions(q)
+        paths = [arm.chain.for_tool(frame).joint_positions(q) for frame in tool_frames(calibrated.extra)]
         if arm.base is not None:
             base = calibrated.parameters[arm.base]
-            p = base.vartype.from_list(base.values[0]).transformFrom(p.T).T
-        return [Lines(f"{robot} links", np.stack([p[:-1], p[1:]], axis=1), "#8c564b", 3.0),
-                Points(f"{robot} joints", p[:-1], "#8c564b", 5.0), Points(f"{robot} tool", p[-1:], "#e377c2", 6.0)]
+            paths = [base.vartype.from_list(base.values[0]).transformFrom(p.T).T for p in paths]
+        links = np.concatenate([np.stack([p[:-1], p[1:]], axis=1) for p in paths])
+        joints = np.concatenate([p[:-1] for p in paths])  # a torso's joints appear once per tool
+        return [Lines(f"{robot} links", links, "#8c564b", 3.0), Points(f"{robot} joints", joints, "#8c564b", 5.0),
+                Points(f"{robot} tool", np.array([p[-1] for p in paths]), "#e377c2", 6.0)]
 
     def outputs(self, robot: str, calibrated: RobotDescription) -> dict[str, str]:
         """`robots/<robot>.urdf`: the URDF with the calibrated parameters built in (export.py)."""

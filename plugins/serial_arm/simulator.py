@@ -21,8 +21,8 @@ from .factors import entry_layout
 from .identifiability import analyze, kinematic_regressor
 from .batch import marker_poses
 from .kinematics import parameters_of
-from .model import Arm, chain_from, kinematic_groups
-from .urdf import urdf_path
+from .model import Arm, chain_from, couplings_of, kinematic_groups, tool_frames
+from .urdf import PREFIX, urdf_path
 
 ROBOTS = Path(__file__).parent / "robots"
 POSITIVE = {"type": "number", "minimum": 0}
@@ -69,12 +69,14 @@ class ArmSimulator(Simulator):
                 "drift": {"joint": 2, "change": 0.0, "random_walk": 0.001}}
 
     def stream_columns(self, params: dict):
-        joints = tuple(_shipped_arm(params)["joints"])
-        return {"joints": joints, "tracker": POSE_COLUMNS if params["measurement"] == "pose" else ("x", "y", "z")}
+        data = _shipped_arm(params)
+        return {"joints": tuple(data["joints"]), "tracker": tracker_columns(params, tool_frames(data))}
 
     def robots(self, params: dict) -> dict[str, dict]:
         """The description; with a drift, the drifting joint's offset becomes its own time-varying parameter."""
         data = _shipped_arm(params)
+        if not data["urdf"].startswith(PREFIX):  # a URDF shipped beside the description: where it is installed
+            data["urdf"] = str(urdf_path(data["urdf"], ROBOTS))
         if params["drift"]["change"] > 0:
             kin, pars = data["kinematics"], data["parameters"]
             joint = data["joints"][params["drift"]["joint"]]
@@ -90,13 +92,21 @@ class ArmSimulator(Simulator):
         return {"arm": data}
 
     def config(self, params: dict) -> dict:
-        n = len(_shipped_arm(params)["joints"])
+        """Encoders and the tracker; with several tool frames, one arm.tool_position entry per frame on its columns."""
+        data = _shipped_arm(params)
+        n, frames = len(data["joints"]), tool_frames(data)
         tracker = "arm.tool_pose" if params["measurement"] == "pose" else "arm.tool_position"
         sigma = {k: max(v, 1e-6) for k, v in params["tracker_sigma"].items()}
         factors = [{"type": "arm.joint_encoders", "robot": "arm", "stream": "joints",
-                    "sigma": max(params["encoder_sigma"], 1e-7)},
-                   {"type": tracker, "robot": "arm", "stream": "tracker",
-                    "sigma": sigma if params["measurement"] == "pose" else sigma["translation"]}]
+                    "sigma": max(params["encoder_sigma"], 1e-7)}]
+        if len(frames) == 1:
+            factors.append({"type": tracker, "robot": "arm", "stream": "tracker",
+                            "sigma": sigma if params["measurement"] == "pose" else sigma["translation"]})
+        else:
+            columns = tracker_columns(params, frames)
+            factors += [{"type": tracker, "robot": "arm", "stream": "tracker", "tool_frame": frame,
+                         "columns": list(columns[3 * i:3 * i + 3]), "sigma": sigma["translation"]}
+                        for i, frame in enumerate(frames)]
         if params["drift"]["change"] > 0:
             factors.append({"type": "parameter.random_walk", "robot": "arm", "parameter": DRIFT_PARAMETER,
                             "sigma": params["drift"]["random_walk"]})
@@ -106,26 +116,33 @@ class ArmSimulator(Simulator):
 
     def simulate(self, params: dict, rng: np.random.Generator) -> SourceOutput:
         data = self.robots(params)["arm"]
-        arm = Arm(chain_from(urdf_path(data["urdf"], ROBOTS), data["base_frame"], data["tool_frame"], data["joints"]),
-                  *kinematic_groups(data))
-        chain, pars = arm.chain, data["parameters"]
-        tool_type = pars[arm.tool]["type"] if arm.tool else ""
-        layout, variables = entry_layout(arm, {}, tool_type)
+        frames = tool_frames(data)
+        chain = chain_from(urdf_path(data["urdf"], ROBOTS), data["base_frame"], frames, data["joints"],
+                           couplings_of(data), data.get("locked", {}))
+        pars = data["parameters"]
+        arms = [Arm(chain.for_tool(frame), *kinematic_groups(data, frame)) for frame in frames]
+        layouts = [entry_layout(arm, {}, pars[arm.tool]["type"] if arm.tool else "") for arm in arms]
+        variables = union_variables(layouts)
         t, q = self._motion(params, chain, rng)
         nominal = [_value(pars[name], index) for name, index in variables]
-        truth = self._truth(params, arm, layout, variables, pars, nominal, q, rng)
-        p = parameters_of(layout, truth)
-        offsets = list(p.offsets)
-        for i, change in self._drift(params, variables, t).items():  # the drifting offset: one value per sample
-            offsets[i - layout.base - bool(layout.tool)] = truth[i] + change
-        p.offsets = offsets
-        poses = [gtsam.Pose3(T) for T in marker_poses(chain, layout, q, p).T]
+        truth = self._truth(params, arms, layouts, variables, pars, nominal, q, rng)
+        poses = []
+        for arm, (layout, names) in zip(arms, layouts):
+            values = [truth[variables.index(v)] for v in names]
+            p = parameters_of(layout, values)
+            offsets = list(p.offsets)
+            for i, change in self._drift(params, names, t).items():  # the drifting offset: one value per sample
+                offsets[i - layout.base - bool(layout.tool)] = values[i] + change
+            p.offsets = offsets
+            poses.append([gtsam.Pose3(T) for T in marker_poses(arm.chain, layout, q, p).T])
         noise = params["tracker_sigma"]
+        columns = tracker_columns(params, frames)
         if params["measurement"] == "pose":
-            tracker = pose_stream("tracker", t, noisy(poses, noise, rng), "simulated:tracker")
+            tracker = pose_stream("tracker", t, noisy(poses[0], noise, rng), "simulated:tracker")
         else:
-            xyz = np.array([p.translation() for p in poses]) + rng.normal(0.0, noise["translation"], (len(t), 3))
-            tracker = Stream("tracker", t, ("x", "y", "z"), xyz, "simulated:tracker")
+            xyz = np.concatenate([[p.translation() for p in hand] for hand in poses], axis=1)
+            tracker = Stream("tracker", t, columns, xyz + rng.normal(0.0, noise["translation"], xyz.shape),
+                             "simulated:tracker")
         readings = q + rng.normal(0.0, params["encoder_sigma"], q.shape)
         names = tuple(f"c{i}" for i in range(chain.n))
         calibration = {}
@@ -156,20 +173,30 @@ class ArmSimulator(Simulator):
         return t, mid + amp * np.sin(2 * np.pi * freq * t[:, None] + phase)
 
     @staticmethod
-    def _truth(params: dict, arm: Arm, layout, variables, pars: dict, nominal: list, q: np.ndarray, rng) -> list:
-        """Nominal values plus errors, drawn for the identifiable tangent axes only."""
-        sigma = _error_sigmas(params["errors"], layout)
-        scale = np.concatenate([_sigma_row(pars[name].get("sigma"), index or 0, width)
-                                for (name, index), width in zip(variables, layout.widths)])
+    def _truth(params: dict, arms: list[Arm], layouts: list, variables: list, pars: dict, nominal: list,
+               q: np.ndarray, rng) -> list:
+        """Nominal values plus errors, drawn for the tangent axes the tool frames' measurements identify together."""
+        widths = {v: w for layout, names in layouts for v, w in zip(names, layout.widths)}
+        start = np.cumsum([0] + [widths[v] for v in variables])
+        sigma, scale = np.zeros(start[-1]), np.zeros(start[-1])
         kind = params["measurement"]
-        A = kinematic_regressor(arm.chain, layout, parameters_of(layout, nominal), q[:: max(1, len(q) // 200)],
-                                kind, np.ones(6 if kind == "pose" else 3))
+        blocks = []
+        for arm, (layout, names) in zip(arms, layouts):
+            columns = np.concatenate([np.arange(start[variables.index(v)], start[variables.index(v) + 1])
+                                      for v in names]).astype(int)
+            sigma[columns] = _error_sigmas(params["errors"], layout)
+            scale[columns] = np.concatenate([_sigma_row(pars[name].get("sigma"), index or 0, width)
+                                             for (name, index), width in zip(names, layout.widths)])
+            values = parameters_of(layout, [nominal[variables.index(v)] for v in names])
+            A = np.zeros(((6 if kind == "pose" else 3) * len(q[:: max(1, len(q) // 200)]), start[-1]))
+            A[:, columns] = kinematic_regressor(arm.chain, layout, values, q[:: max(1, len(q) // 200)], kind,
+                                                np.ones(6 if kind == "pose" else 3))
+            blocks.append(A)
         xi = rng.normal(0.0, sigma)
-        xi[analyze(A, np.where(np.isfinite(scale), scale, 1.0)).held] = 0.0
-        out, c = [], 0
-        for value, width in zip(nominal, layout.widths):
-            d = xi[c:c + width]
-            c += width
+        xi[analyze(np.concatenate(blocks), np.where(np.isfinite(scale), scale, 1.0)).held] = 0.0
+        out = []
+        for value, a, b in zip(nominal, start[:-1], start[1:]):
+            d = xi[a:b]
             if isinstance(value, gtsam.Pose3):
                 out.append(value.compose(gtsam.Pose3.Expmap(d)))
             else:
@@ -182,6 +209,24 @@ class ArmSimulator(Simulator):
         if params["drift"]["change"] <= 0:
             return {}
         return {variables.index((DRIFT_PARAMETER, 0)): drift_truth(params, t, 0.0)}
+
+
+def union_variables(layouts: list) -> list:
+    """Every tool frame's layout variables once, ordered as the identifiability diagnostic orders its columns: base,
+    markers, offsets, placements (within each, in order of first use)."""
+    role = {}
+    for layout, names in layouts:
+        ends = np.cumsum([layout.base, bool(layout.tool), len(layout.offsets), len(layout.placements)])
+        for i, v in enumerate(names):
+            role.setdefault(v, int(np.searchsorted(ends, i, side="right")))
+    return sorted(role, key=lambda v: role[v])  # stable: first use within a role
+
+
+def tracker_columns(params: dict, frames: tuple[str, ...]) -> tuple[str, ...]:
+    """The tracker stream's columns: a pose or x, y, z; with several tool frames `<frame>_x`, ... per frame."""
+    if len(frames) == 1:
+        return POSE_COLUMNS if params["measurement"] == "pose" else ("x", "y", "z")
+    return tuple(f"{frame}_{axis}" for frame in frames for axis in "xyz")
 
 
 def joint_range(chain) -> tuple[np.ndarray, np.ndarray]:
@@ -219,6 +264,9 @@ def _shipped_arm(params: dict) -> dict:
     if data.get("model") != "serial_arm":
         raise ConfigError(f"{where} is a {data.get('model', 'generic')!r} robot; arm.sim needs a serial_arm one")
     n = len(data["joints"])
+    if params["measurement"] == "pose" and len(tool_frames(data)) > 1:
+        raise ConfigError(f"{where} has several tool frames: arm.sim measures their markers' positions "
+                          "(measurement: position)")
     if params["drift"]["change"] > 0 and params["drift"]["joint"] >= n:
         raise ConfigError(f"arm.sim: drift.joint {params['drift']['joint']} is not a joint of "
                           f"{params['description']!r} (0 .. {n - 1})")

@@ -419,7 +419,7 @@ def test_csv_first_column_not_t_is_refused_at_the_header_line(ds, out, capsys):
     config = csv_dataset(ds, "# exported\ntime,x,y,z,qx,qy,qz,qw\n0,0,0,0,0,0,0,1\n")
     assert fails(capsys, run(config, out), out=out) == (
         f"{ds / 'data' / 'mocap.csv'}:2: first column is 'time'; expected 't' (time in seconds), "
-        "header was time,x,y,z,qx,qy,qz,qw")
+        "header was time,x,y,z,qx,qy,qz,qw (static samples without times: `time: row` on a csv source numbers the rows)")
 
 
 def test_csv_with_nan_counts_the_rows_and_names_the_first_line(ds, out, capsys):

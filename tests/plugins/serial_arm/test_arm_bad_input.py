@@ -8,6 +8,7 @@ import pytest
 
 from fusionkit.api import robot_description_data
 from fusionkit.cli.main import main
+from fusionkit_plugins.serial_arm.simulator import ROBOTS
 
 
 def config(description: dict, factors: list | None = None, states: dict | None = None) -> dict:
@@ -85,6 +86,40 @@ CASES = {
         edit_description(lambda d, _: d["parameters"].update(marker={"type": "point3", "value": [0, 0, 0.06]})),
         "factors[1].robot: the description's kinematics.tool 'marker' is a point3; arm.tool_pose needs a pose3"),
 }
+
+
+def upper_body(change):
+    """The shipped two-hand description and the config of configs/upper_body_calibration.yaml, changed."""
+    def make(tmp_path) -> dict:
+        desc = robot_description_data("upper_body_mocap")
+        desc["urdf"] = str(ROBOTS / desc["urdf"])  # inline: the shipped URDF where it is installed
+        hands = [{"type": "arm.tool_position", "robot": "arm", "stream": "tracker", "tool_frame": hand,
+                  "columns": [f"{hand}_{a}" for a in "xyz"], "sigma": 2e-4} for hand in ("l_hand", "r_hand")]
+        c = config(desc, [{"type": "arm.joint_encoders", "robot": "arm", "stream": "joints", "sigma": 1e-5}, *hands],
+                   {"stream": "joints", "type": "vector13", "family": "joints"})
+        c["sources"][0]["params"] = {"description": "upper_body_mocap", "measurement": "position",
+                                     "configurations": 5}
+        change(c, desc)
+        return c
+    return make
+
+
+CASES.update({
+    "two hands, entry names none": (upper_body(lambda c, _: c["factors"][1].pop("tool_frame")),
+                                    "factors[1].robot: robot 'arm' has several tool frames (l_hand, r_hand): name the "
+                                    "one this entry measures (`tool_frame:`)"),
+    "two hands, entry names another frame": (upper_body(lambda c, _: c["factors"][2].update(tool_frame="chest")),
+                                             "factors[2].tool_frame: 'chest' is not a tool frame of robot 'arm': l_hand, r_hand"),
+    "two hands, one marker for both": (upper_body(lambda _, d: d["kinematics"].update(tool="marker_left")),
+                                       "kinematics.tool: the robot has several tool frames: give one marker parameter "
+                                       "per frame"),
+    "two hands, marker of an unknown frame": (
+        upper_body(lambda _, d: d["kinematics"].update(tool={"l_hand": "marker_left", "head": "marker_right"})),
+        "kinematics.tool.head: 'head' is not one of the tool frames (tool_frame: l_hand, r_hand)"),
+    "a listed joint moving no tool frame": (
+        upper_body(lambda _, d: d.update(tool_frame=["l_hand"])),
+        "joints: upper_body.urdf: joint 'r_shoulder_pitch' does not move tool_frame 'l_hand'"),
+})
 
 
 @pytest.mark.parametrize("case", CASES)
