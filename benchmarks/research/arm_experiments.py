@@ -33,7 +33,13 @@ ROBOT = "arm"
 # the models of the README's table, as changes of configs/arm_ur10_real.yaml (the shipped config is "full")
 MODELS = {"base_marker": ["robots.arm.description.kinematics={base: base, tool: marker}"],
           "offsets": ["robots.arm.description.kinematics.placements=[]"],
-          "full": []}
+          "full": [],
+          # + a compliance per gravity-loaded joint (shoulder lift, elbow, wrist 1; the URDF's inertials), prior
+          # 1e-4 rad/(N m) (a UR10's joints are ~1e-6 - 1e-5 stiff-compliant: the prior is loose)
+          "elastic": ["robots.arm.description.kinematics.compliances=[{parameter: compliance, joints: "
+                      "[shoulder_lift_joint, elbow_joint, wrist_1_joint]}]",
+                      "robots.arm.description.parameters.compliance={type: scalar, values: [0.0, 0.0, 0.0], "
+                      "sigma: 1.0e-4, unit: rad/(N m)}"]}
 
 
 # --- a run's model and its predictions --------------------------------------------------------------

@@ -19,7 +19,7 @@ from .lazy_pinocchio import pin
 
 from fusionkit.api import lie
 from .chain import PIN_TO_GTSAM, SerialChain
-from .kinematics import Layout, Parameters, joint_deltas
+from .kinematics import Layout, Parameters, deflected, joint_deltas
 
 EYE6 = np.eye(6)
 
@@ -116,11 +116,13 @@ def batch_chain(chain: SerialChain) -> BatchChain:
 
 def marker_poses(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameters, jacobians: bool = False) -> Poses:
     """meas_T_marker for joint values q (N, n): kinematics.marker_pose for every sample. `p`: base and
-    tool (4, 4) or (N, 4, 4), `offsets` a list of scalars or (N,) arrays, `placements` of (w,) or (N, w)."""
+    tool (4, 4) or (N, 4, 4), `offsets` and `compliances` lists of scalars or (N,) arrays, `placements` of (w,) or
+    (N, w)."""
     bc = batch_chain(chain)
     q = np.asarray(q, float)
     dq, deltas = joint_deltas(layout, p, chain.n)
-    F, J_f, placement_blocks = bc.flange(q + dq, deltas, jacobians)
+    q_eff, dq_eff, tau = deflected(chain, layout, q + dq, p, jacobians)
+    F, J_f, placement_blocks = bc.flange(q_eff, deltas, jacobians)
     B = np.eye(4) if p.base is None else np.asarray(p.base, float)
     M = np.eye(4) if p.tool is None else np.asarray(p.tool, float)
     FM = F @ M
@@ -128,7 +130,8 @@ def marker_poses(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameter
     if not jacobians:
         return Poses(T)
     ad_tool = lie.adjoint(lie.inverse(M))
-    J_q = ad_tool @ J_f
+    J_m = ad_tool @ J_f
+    J_q = J_m if dq_eff is None else J_m @ dq_eff
     N = len(q)
     blocks = [J_q]
     if layout.base:
@@ -138,6 +141,7 @@ def marker_poses(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameter
                                       (N, 6, 6 if layout.tool == "pose3" else 3)))
     blocks += [J_q[:, :, [j]] for j in layout.offsets]
     blocks += [ad_tool @ placement_blocks[j][:, :, list(axes)] for j, axes in layout.placements]
+    blocks += [J_m[:, :, [j]] * tau[:, None, j, None] for j in layout.compliances]
     return Poses(T, blocks)
 
 

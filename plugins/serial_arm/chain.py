@@ -155,6 +155,13 @@ class SerialChain:
         self.prismatic = [self.model.joints[jid].shortname().startswith("JointModelP") for jid in self.jids]
         self.lower = np.array([self.model.lowerPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
         self.upper = np.array([self.model.upperPositionLimit[self.model.joints[j].idx_q] for j in self.jids])
+        self.gravity = np.array([0.0, 0.0, -9.81])  # m/s^2 in the URDF's root frame
+        self._gravity: dict[tuple, tuple] = {}  # payload -> (model, data) with the URDF's nominal placements
+        # d v / d q: the reduced model's joint velocities per listed joint value (listed: one; coupled: the coupling)
+        self.dv_dq = np.zeros((self.model.nv, self.n))
+        self.dv_dq[self.idx_v, np.arange(self.n)] = 1.0
+        if self.coupled_v:
+            self.dv_dq[self.coupled_v] = self.coupling
         self._tools: dict[str, SerialChain] = {}
         self._select(tool_frames[0])
 
@@ -178,6 +185,39 @@ class SerialChain:
                                  f"{', '.join(self.tool_frames)}")
             copy.copy(self)._select(frame)
         return self._tools[frame]
+
+    def gravity_torques(self, q: np.ndarray, payload: tuple[float, ...] = (), jacobians: bool = False):
+        """The gravity torque on each listed joint (N, n; N m, or N for a prismatic joint) at joint values q (N, n)
+        from the URDF's inertials (`gravity`: -9.81 m/s^2 along the URDF root's z unless set) plus `payload` (frame, mass kg, x, y,
+        z m in that frame), a coupled joint's torque carried to its leaders (virtual work: tau = V^T g); with
+        `jacobians` also d tau / d q (N, n, n), else None."""
+        model, data = self._gravity_model((self.model.getFrameId(payload[0]), *payload[1:]) if payload else ())
+        q = np.atleast_2d(np.asarray(q, float))
+        tau = np.empty(q.shape)
+        dtau = np.empty(q.shape + (self.n,)) if jacobians else None
+        V = self.dv_dq
+        for i, qi in enumerate(q):
+            config = self._configuration(qi)
+            tau[i] = V.T @ pin.computeGeneralizedGravity(model, data, config)
+            if jacobians:
+                dtau[i] = V.T @ pin.computeGeneralizedGravityDerivatives(model, data, config) @ V
+        return tau, dtau
+
+    def _gravity_model(self, key: tuple) -> tuple:
+        """The model gravity torques are computed on: the URDF's nominal placements (placement errors change
+        torques by their own small fraction) and inertials, a payload (key: tool frame id, mass, x, y, z) added to
+        the tool frame's joint."""
+        if key not in self._gravity:
+            model = pin.Model(self.model)
+            model.gravity = pin.Motion(self.gravity, np.zeros(3))
+            for j, jid in enumerate(self.jids):
+                model.jointPlacements[jid] = self.nominal[j]
+            if key:
+                frame = model.frames[key[0]]
+                at = frame.placement.act(np.asarray(key[2:5], float))
+                model.inertias[frame.parentJoint] += pin.Inertia(float(key[1]), at, np.zeros((3, 3)))
+            self._gravity[key] = (model, model.createData())
+        return self._gravity[key]
 
     def unit_twist(self, jid: int) -> np.ndarray:
         """The motion axis of joint `jid` (reduced model) as a unit twist in GTSAM order (rotation, translation)."""

@@ -26,7 +26,8 @@ from fusionkit.api import lie
 from .chain import SerialChain
 from .factors import entry_layout
 from .kinematics import joint_deltas, parameters_of
-from .model import arm_of, tool_frames
+from .elastic import compliance_document
+from .model import arm_of, couplings_of, tool_frames
 from .urdf import urdf_path
 
 MEASUREMENT_FRAME = "measurement_frame"  # the new root link: the frame the tracker measures in
@@ -86,10 +87,10 @@ def _fixed_joint(name: str, parent: str, child: str, T: np.ndarray, indent: str)
 
 
 def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple[float, np.ndarray]], base: np.ndarray,
-                    markers: dict[str, np.ndarray], note: str) -> str:
+                    markers: dict[str, np.ndarray], note: str) -> tuple[str, list[str]]:
     """The URDF `text` of `chain` with its calibrated parameters built in (module docstring): `joint_errors` {joint
     id in chain.model: (offset, placement twist)}, the base B, a marker pose M per tool frame; the comment `note`
-    (plus the names of the added links) at the top of `<robot>`."""
+    (plus the names of the added links) at the top of `<robot>`. Returns the text and the marker links' names."""
     prolog = text[:text.find("<robot")] if "<robot" in text else ""
     robot = ET.fromstring(text, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     joints = {j.get("name"): j for j in robot.findall("joint")}
@@ -106,6 +107,7 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
     added = [ET.Element("link", name=meas),
              _fixed_joint(_free(f"{meas}_joint", taken), meas, root, base @ chain.base_T_universe, indent)]
     said = [f"link {meas} (the measurement frame, parent of {root})"]
+    names = []
     for frame, M in markers.items():
         tool_link = frame if frame in links else joints[frame].find("child").get("link")  # a joint's frame: its child's
         marker = _free(MARKER if len(markers) == 1 else f"{MARKER}_{frame}", taken)
@@ -114,6 +116,7 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
                                                                 indent)]
         taken.add(f"{marker}_joint")
         said.append(f"link {marker} (on {tool_link})")
+        names.append(marker)
     note += f" Added: {' and '.join(said)}."
     comment = ET.Comment(f" {note.replace('--', '- -')} ")  # "--" may not appear in an XML comment
     robot.insert(0, comment)
@@ -122,15 +125,16 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
     robot[-1].tail = indent  # the last original element, now followed by the new ones
     robot.extend(added)
     added[-1].tail = "\n"
-    return prolog + ET.tostring(robot, encoding="unicode") + "\n"
+    return prolog + ET.tostring(robot, encoding="unicode") + "\n", names
 
 
 def calibrated_errors(calibrated: RobotDescription) -> tuple[SerialChain, dict, np.ndarray, dict[str, np.ndarray], list]:
-    """(chain, {joint id: (offset, placement twist)}, base B, {tool frame: marker M}, variables) of a calibrated
+    """(chain, {joint id: (offset, placement twist)}, base B, {tool frame: marker M}, variables, {joint: compliance})
+    of a calibrated
     description, every tool frame's joints together; M = I for a tool frame without a marker parameter. A coupled
     joint moves by its coupling of its leaders' offsets (its value stays the coupling of the readings)."""
     errors: dict[int, tuple[float, np.ndarray]] = {}
-    markers, variables, base = {}, [], np.eye(4)
+    markers, variables, base, compliances = {}, [], np.eye(4), {}
     for frame in tool_frames(calibrated.extra):
         arm = arm_of(calibrated, frame)
         tool = calibrated.parameters[arm.tool].vartype.name if arm.tool else ""
@@ -145,18 +149,28 @@ def calibrated_errors(calibrated: RobotDescription) -> tuple[SerialChain, dict, 
         base = np.eye(4) if p.base is None else p.base
         markers[frame] = np.eye(4) if p.tool is None else p.tool
         variables += names
-    return arm.chain, errors, base, markers, list(dict.fromkeys(variables))
+        compliances.update({arm.chain.joint_names[j]: float(c) for j, c in zip(layout.compliances, p.compliances)})
+    return arm.chain, errors, base, markers, list(dict.fromkeys(variables)), compliances
 
 
 def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
-    """{`robots/<robot>.urdf`: the description's URDF with its calibrated parameters built in}: the
-    serial_arm model's output of `fusionkit run` (RobotModel.outputs)."""
-    chain, errors, base, markers, variables = calibrated_errors(calibrated)
+    """{`robots/<robot>.urdf`: the description's URDF with its calibrated parameters built in; with compliances
+    also `robots/<robot>.compliance.yaml` (elastic.py)}: the serial_arm model's output of `fusionkit run`
+    (RobotModel.outputs)."""
+    chain, errors, base, markers, variables, compliances = calibrated_errors(calibrated)
     source = urdf_path(str(calibrated.extra["urdf"]), Path(calibrated.doc.file).parent)
     drifting = sorted({name for name, _ in variables if calibrated.parameters[name].time_varying})
     note = (f"fusionkit: robot {robot!r} ({calibrated.name}) calibrated, from {source.name}. Joints with an offset or "
             "a placement error: origin = URDF origin * Exp(placement error) * the joint's motion by its offset, so "
             "the joint value is the encoder reading (a coupled joint's: its coupling of the readings)."
             + (f" Time-varying parameters at their last estimated value: {', '.join(drifting)}." if drifting else ""))
-    return {f"robots/{robot}.urdf": calibrated_urdf(source.read_text(encoding="utf-8"), chain, errors, base, markers,
-                                                    note)}
+    text, marker_links = calibrated_urdf(source.read_text(encoding="utf-8"), chain, errors, base, markers, note)
+    out = {f"robots/{robot}.urdf": text}
+    if compliances:
+        gravity = (base @ chain.base_T_universe)[:3, :3] @ chain.gravity  # the URDF root's gravity, seen from the
+        out[f"robots/{robot}.compliance.yaml"] = compliance_document(  # measurement frame (the exported root)
+            chain, compliances, gravity, f"{robot}.urdf", marker_links, couplings_of(calibrated.extra),
+            arm_of(calibrated).payload,
+            f"robot {robot!r} ({calibrated.name}): joint compliances beside {robot}.urdf; deflected pose = "
+            "FK(q + compliance x gravity torque(q)) (fusionkit_plugins.serial_arm.elastic.deflected_pose)")
+    return out

@@ -18,6 +18,10 @@ kinematic parameters (docs/reference/robot_description.md#model-serial_arm).
         - {parameter: joint_offsets, joints: [shoulder_pan_joint, ...]}
       placements:                      # vectorN parameters, one value per listed joint, N = len(axes)
         - {parameter: placement, joints: [...], axes: [tx, ty, tz, rx, ry, rz]}
+      compliances:                     # scalar parameters, one per listed joint: deflection = compliance * gravity
+        - {parameter: compliance, joints: [shoulder_lift_joint, elbow_joint]}   # torque (rad per N m; URDF inertials)
+    payload: {mass: 2.0, center: [0, 0, 0.05], frame: tool0}   # optional known load (kg, m in `frame`, default the
+                                                                # first tool frame): adds to the gravity torques
 """
 
 from __future__ import annotations
@@ -68,6 +72,8 @@ class Arm:
     tool: str | None
     offsets: tuple[Group, ...]
     placements: tuple[Group, ...]
+    compliances: tuple[Group, ...] = ()
+    payload: tuple = ()           # (frame, mass kg, x, y, z m) of a known load, () for none
 
 
 def tool_frames(extra: dict) -> tuple[str, ...]:
@@ -124,15 +130,18 @@ def kinematic_groups(extra: dict, frame: str | None = None) -> tuple:
         return tuple(Group(g["parameter"], tuple(joints.index(j) for j in g["joints"]),
                            tuple(AXIS_NAMES.index(a) for a in g.get("axes", ())))
                      for g in kin.get(key, ()))
+    load = extra.get("payload")
+    payload = (load.get("frame", tool_frames(extra)[0]), float(load["mass"]),
+               *map(float, load.get("center", (0.0, 0.0, 0.0)))) if load else ()
     return kin.get("base"), marker_of(extra, frame or tool_frames(extra)[0]), groups("joint_offsets"), \
-        groups("placements")
+        groups("placements"), groups("compliances"), payload
 
 
 def group_joints(extra: dict, parameter: str) -> list[str] | None:
     """The joints of the kinematic group (joint offsets or placements) whose parameter is `parameter`, in its
     values' order: the names of its elements (`joint_offsets[elbow_joint]`); None if no group has it."""
     kin = extra.get("kinematics") or {}
-    for group in [*kin.get("joint_offsets", ()), *kin.get("placements", ())]:
+    for group in [*kin.get("joint_offsets", ()), *kin.get("placements", ()), *kin.get("compliances", ())]:
         if group["parameter"] == parameter:
             return list(group["joints"])
     return None
@@ -163,6 +172,12 @@ class SerialArmModel(RobotModel):
                              "tool_frame": {"oneOf": [{"type": "string"}, NAMES]}, "joints": NAMES,
                              "couplings": {"type": "array", "items": COUPLING},
                              "locked": {"type": "object", "additionalProperties": {"type": "number"}},
+                             "payload": {"type": "object",
+                                         "properties": {"mass": {"type": "number", "minimum": 0},
+                                                        "center": {"type": "array", "items": {"type": "number"},
+                                                                   "minItems": 3, "maxItems": 3},
+                                                        "frame": {"type": "string"}},
+                                         "required": ["mass"], "additionalProperties": False},
                              "kinematics": {"type": "object",
                                             "properties": {"base": {"type": "string"},
                                                            "tool": {"oneOf": [{"type": "string"},
@@ -170,6 +185,7 @@ class SerialArmModel(RobotModel):
                                                                                "additionalProperties":
                                                                                    {"type": "string"}}]},
                                                            "joint_offsets": {"type": "array", "items": OFFSET_GROUP},
+                                                           "compliances": {"type": "array", "items": OFFSET_GROUP},
                                                            "placements": {"type": "array", "items": PLACEMENT_GROUP}},
                                             "additionalProperties": False}},
               "required": ["urdf", "base_frame", "tool_frame", "joints"], "additionalProperties": False}
@@ -196,17 +212,18 @@ class SerialArmModel(RobotModel):
             check_pose_parameter(desc, ("kinematics", "tool"), tool, ("pose3", "point3"))
         joints = desc.extra["joints"]
         taken: set = set()
-        for key in ("joint_offsets", "placements"):
+        for key in ("joint_offsets", "placements", "compliances"):
             for i, group in enumerate(kin.get(key, ())):
                 path = ("kinematics", key, i)
                 dim = len(group.get("axes", [None]))
-                self._check_group(desc, path, group, joints, "scalar" if key == "joint_offsets" else f"vector{dim}")
+                self._check_group(desc, path, group, joints, f"vector{dim}" if key == "placements" else "scalar")
                 for j in group["joints"]:
                     for axis in group.get("axes", ["offset"]):
                         if (key, j, axis) in taken:
                             raise desc.error(path + ("joints",), f"joint {j!r}{'' if axis == 'offset' else ' ' + axis} "
                                              f"is already in another {key} group")
                         taken.add((key, j, axis))
+        self._check_gravity(desc, kin)
 
     def element_names(self, desc: RobotDescription, parameter: str) -> list[str] | None:
         """A kinematic group's parameter has one element per joint: named by the joint."""
@@ -240,6 +257,22 @@ class SerialArmModel(RobotModel):
         """`robots/<robot>.urdf`: the URDF with the calibrated parameters built in (export.py)."""
         from .export import urdf_output
         return urdf_output(robot, calibrated)
+
+    @staticmethod
+    def _check_gravity(desc: RobotDescription, kin: dict) -> None:
+        """A payload's frame is in the URDF; a compliant joint carries mass (else its torque, and what its compliance
+        moves, is zero: the URDF has no inertials there)."""
+        chain = load_chain(desc)
+        load = desc.extra.get("payload")
+        if load and not chain.model.existFrame(load.get("frame", tool_frames(desc.extra)[0])):
+            raise desc.error(("payload", "frame"), f"the URDF has no frame {load['frame']!r}")
+        for i, group in enumerate(kin.get("compliances", ())):
+            for name in group["joints"]:
+                jid = chain.model.getJointId(name)
+                if not load and sum(chain.model.inertias[j].mass for j in chain.model.subtrees[jid]) <= 0:
+                    raise desc.error(("kinematics", "compliances", i, "joints"), f"joint {name!r} carries no mass in "
+                                     "the URDF (no <inertial> beyond it): its gravity torque is 0, a compliance would "
+                                     "move nothing; give the links their inertials or a payload")
 
     @staticmethod
     def _check_group(desc: RobotDescription, path: tuple, group: dict, joints: list[str], vartype: str) -> None:

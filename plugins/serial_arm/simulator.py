@@ -53,7 +53,8 @@ class ArmSimulator(Simulator):
                              "tracker_sigma": POSE_NOISE_SCHEMA, "encoder_sigma": POSITIVE,
                              "errors": {"type": "object",
                                         "properties": {"base": POSE_NOISE_SCHEMA, "tool": POSE_NOISE_SCHEMA,
-                                                       "joint_offsets": POSITIVE, "placements": POSE_NOISE_SCHEMA},
+                                                       "joint_offsets": POSITIVE, "placements": POSE_NOISE_SCHEMA,
+                                                       "compliances": POSITIVE},
                                         "additionalProperties": False},
                              "drift": {"type": "object",
                                        "properties": {"joint": {"type": "integer", "minimum": 0}, "change": POSITIVE,
@@ -65,7 +66,7 @@ class ArmSimulator(Simulator):
                 "encoder_sigma": 1e-5,
                 "errors": {"base": {"rotation": 0.02, "translation": 0.02},
                            "tool": {"rotation": 0.02, "translation": 0.005}, "joint_offsets": 0.005,
-                           "placements": {"rotation": 0.001, "translation": 0.0005}},
+                           "placements": {"rotation": 0.001, "translation": 0.0005}, "compliances": 5e-5},
                 "drift": {"joint": 2, "change": 0.0, "random_walk": 0.001}}
 
     def stream_columns(self, params: dict):
@@ -213,10 +214,11 @@ class ArmSimulator(Simulator):
 
 def union_variables(layouts: list) -> list:
     """Every tool frame's layout variables once, ordered as the identifiability diagnostic orders its columns: base,
-    markers, offsets, placements (within each, in order of first use)."""
+    markers, offsets, placements, compliances (within each, in order of first use)."""
     role = {}
     for layout, names in layouts:
-        ends = np.cumsum([layout.base, bool(layout.tool), len(layout.offsets), len(layout.placements)])
+        ends = np.cumsum([layout.base, bool(layout.tool), len(layout.offsets), len(layout.placements),
+                          len(layout.compliances)])
         for i, v in enumerate(names):
             role.setdefault(v, int(np.searchsorted(ends, i, side="right")))
     return sorted(role, key=lambda v: role[v])  # stable: first use within a role
@@ -254,6 +256,7 @@ def _error_sigmas(err: dict, layout) -> np.ndarray:
         out += ([err[role]["rotation"]] * 3 if width == 6 else []) + [err[role]["translation"]] * 3 * (width > 0)
     out += [err["joint_offsets"]] * len(layout.offsets)
     out += [err["placements"]["rotation" if a < 3 else "translation"] for _, axes in layout.placements for a in axes]
+    out += [err["compliances"]] * len(layout.compliances)
     return np.array(out, float)
 
 

@@ -53,7 +53,8 @@ def test_csv_first_column_must_be_t(tmp_path):
     path = write(tmp_path, "a.csv", "time,x\n0,1\n")
     with pytest.raises(DataError) as err:
         read_csv_stream(path, "a")
-    assert str(err.value) == f"{path}:1: first column is 'time'; expected 't' (time in seconds), header was time,x"
+    assert str(err.value) == (f"{path}:1: first column is 'time'; expected 't' (time in seconds), header was time,x "
+                              "(static samples without times: `time: row` on a csv source numbers the rows)")
 
 
 def test_csv_repeated_or_empty_column_names_are_named_at_the_header_line(tmp_path):
@@ -132,7 +133,8 @@ def test_csv_header_is_read_without_the_rows_and_its_errors_are_located(tmp_path
     path = write(tmp_path, "b.csv", "# c\nx,y\n")
     with pytest.raises(DataError) as err:
         read_csv_header(path)
-    assert str(err.value) == f"{path}:2: first column is 'x'; expected 't' (time in seconds), header was x,y"
+    assert str(err.value) == (f"{path}:2: first column is 'x'; expected 't' (time in seconds), header was x,y "
+                              "(static samples without times: `time: row` on a csv source numbers the rows)")
     path = write(tmp_path, "c.csv", "# only comments\n")
     with pytest.raises(DataError) as err:
         read_csv_header(path)

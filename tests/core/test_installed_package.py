@@ -28,10 +28,11 @@ def _run(cmd: list, cwd: Path, timeout: float = 600) -> subprocess.CompletedProc
 
 
 def _repository_modules_and_descriptions() -> set[str]:
-    """Every module under fusionkit/ and plugins/ and every plugins/*/robots/*.yaml, by the path a
-    wheel stores it under (plugins/ is the package fusionkit_plugins)."""
+    """Every module under fusionkit/ and plugins/ and every plugins/*/robots/*.yaml (and a URDF shipped beside
+    them), by the path a wheel stores it under (plugins/ is the package fusionkit_plugins)."""
     names = {str(p.relative_to(REPO)) for p in (REPO / "fusionkit").rglob("*.py")}
-    for p in [*(REPO / "plugins").rglob("*.py"), *(REPO / "plugins").glob("*/robots/*.yaml")]:
+    for p in [*(REPO / "plugins").rglob("*.py"), *(REPO / "plugins").glob("*/robots/*.yaml"),
+              *(REPO / "plugins").glob("*/robots/*.urdf")]:
         names.add("fusionkit_plugins/" + str(p.relative_to(REPO / "plugins")))
     return names
 

@@ -1,0 +1,71 @@
+"""The calibrated elastic arm outside fusionkit (docs/models/serial_arm.md#joint-elasticity-under-gravity): the
+joint compliances written beside the calibrated URDF, and the deflected pose they predict.
+
+`robots/<robot>.compliance.yaml` holds what the URDF cannot: each compliant joint's compliance (rad per N m; m per N
+if prismatic), the gravity vector in the URDF's root frame (the measurement frame the export adds: the base's -z
+seen from there), the joint list and couplings (a URDF <mimic> has one leader). The deflected pose at encoder
+readings q and a payload is
+
+    T(q) = FK_urdf(q + C tau(q))
+
+with tau the gravity torques of the exported URDF's inertials plus the payload (Pinocchio), FK the exported URDF's
+forward kinematics (joint offsets and placement errors built into its origins).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .chain import Coupling, SerialChain
+from .kinematics import Layout, Parameters, deflected
+
+FORMAT = "fusionkit serial_arm compliances 1"
+
+
+def compliance_document(chain: SerialChain, compliances: dict[str, float], gravity: np.ndarray, urdf: str,
+                        frames: list[str], couplings: list[Coupling], payload: tuple, note: str) -> str:
+    """The YAML text of `robots/<robot>.compliance.yaml` (module docstring)."""
+    doc = {"format": FORMAT, "urdf": urdf, "note": note, "joints": list(chain.joint_names),
+           "couplings": [{"joint": c.joint, "of": dict(c.leaders), "offset": c.offset} for c in couplings],
+           "compliance": {name: float(v) for name, v in compliances.items()},
+           "gravity": [float(x) for x in gravity], "frames": list(frames),
+           "payload": {"frame": payload[0], "mass": payload[1], "center": list(payload[2:5])} if payload else None}
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, payload: dict | None = None) -> np.ndarray:
+    """The pose (4x4) of `frame` (default: the document's first marker frame) in the exported URDF's root (the
+    measurement frame) at encoder readings q (n,) or (N, n), with its joints deflected under gravity and
+    `payload` ({mass: kg, center: [x, y, z] m, frame: name}, default the one the calibration used); (N, 4, 4) for
+    several configurations."""
+    path = Path(compliance_file)
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ValueError(f"{path}: not a fusionkit compliance file (expected format: {FORMAT!r})")
+    couplings = tuple(Coupling(c["joint"], tuple((k, float(v)) for k, v in c["of"].items()), float(c["offset"]))
+                      for c in doc["couplings"])
+    urdf = path.parent / doc["urdf"]
+    chain = SerialChain.from_urdf(urdf, _root(urdf), tuple(doc["frames"]), doc["joints"], couplings)
+    chain = chain.for_tool(frame or doc["frames"][0])
+    chain.gravity = np.asarray(doc["gravity"], float)
+    load = payload if payload is not None else doc.get("payload")
+    carried = (load.get("frame", chain.tool_frame), float(load["mass"]), *map(float, load.get("center", (0, 0, 0)))) \
+        if load else ()
+    joints = [doc["joints"].index(name) for name in doc["compliance"]]
+    layout = Layout(compliances=tuple(joints), payload=carried)
+    single = np.ndim(q) == 1
+    q_eff, _, _ = deflected(chain, layout, np.atleast_2d(np.asarray(q, float)),
+                            Parameters(compliances=np.array(list(doc["compliance"].values()))))
+    T = np.array([chain.flange(qi).T for qi in q_eff])
+    return T[0] if single else T
+
+
+def _root(urdf: Path) -> str:
+    """The URDF's root link (the measurement frame of an exported file)."""
+    import xml.etree.ElementTree as ET
+    robot = ET.parse(urdf).getroot()
+    children = {j.find("child").get("link") for j in robot.findall("joint")}
+    return next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
