@@ -35,7 +35,7 @@ MODELS = {"base_marker": ["robots.arm.description.kinematics={base: base, tool: 
           "offsets": ["robots.arm.description.kinematics.placements=[]"],
           "full": [],
           # + a compliance per gravity-loaded joint (shoulder lift, elbow, wrist 1; the URDF's inertials), prior
-          # 1e-4 rad/(N m) (a UR10's joints are ~1e-6 - 1e-5 stiff-compliant: the prior is loose)
+          # 1e-4 rad/(N m), loose (industrial arms are reported at 1e-6 - 1e-5 rad/(N m))
           "elastic": ["robots.arm.description.kinematics.compliances=[{parameter: compliance, joints: "
                       "[shoulder_lift_joint, elbow_joint, wrist_1_joint]}]",
                       "robots.arm.description.parameters.compliance={type: scalar, values: [0.0, 0.0, 0.0], "
@@ -237,7 +237,7 @@ def estimated_axes(result: RunResult) -> tuple[np.ndarray, np.ndarray]:
     for name, ev in result.evaluation["parameters"][ROBOT].items():
         sigma = np.ravel(result.parameters[ROBOT][name].sigma)
         z = np.ravel(ev["z_per_axis"])
-        keep = sigma > 1e-6
+        keep = sigma > 1e-8  # held axes: HOLD_SIGMA 1e-9 (a compliance sigma is ~1e-7 rad/(N m))
         errors += list((z * sigma)[keep])
         zs += list(z[keep])
     return np.array(errors), np.array(zs)

@@ -187,7 +187,8 @@ def check_arash(out: Path) -> None:
 def check_serial_arm(out: Path) -> None:
     """The plan beats random picks of its size; the calibration is within 3.5 sigma of the truth on every
     axis and its exported URDF reproduces the tracker to its noise (0.17 mm in 3-D); both drift runs fit
-    their data (chi2/dof near 1)."""
+    their data (chi2/dof near 1); the two-hand upper body calibrates from one description (a marker link per
+    hand in its URDF)."""
     plan = json.loads((out / "arm_plan" / "selection.json").read_text())
     assert plan["count"] == 30 and plan["compared_with_random"]["30"]["geometric_mean"] < 1.0  # measured: 0.93
     for name, ev in _report(out, "arm_result")["evaluation"]["parameters"]["arm"].items():
@@ -196,6 +197,13 @@ def check_serial_arm(out: Path) -> None:
     assert float((out / "arm_urdf_check.txt").read_text()) < 0.25  # mm; measured 0.168
     for folder in ("arm_drift_batch", "arm_drift_lag"):
         assert 0.7 < _report(out, folder)["solver"]["chi2_per_dof"] < 1.3, folder  # measured: 0.84, 0.85
+    body = _report(out, "upper_body")  # two hands, one description: 30 of 37 estimated, chi2/dof 0.81
+    assert 0.6 < body["solver"]["chi2_per_dof"] < 1.4
+    assert body["diagnostics"]["arm: kinematic identifiability"]["rank"] == 30
+    for name, ev in body["evaluation"]["parameters"]["arm"].items():
+        assert np.abs(ev["z_per_axis"]).max() < 4, (name, ev)  # measured: 1.9 at most
+    assert {"marker_l_hand", "marker_r_hand"} <= set(re.findall(r'<link name="(\w+)"', (out / "upper_body" / "robots" /
+                                                                                         "arm.urdf").read_text()))
 
 
 def check_wheeled_robot(out: Path) -> None:
