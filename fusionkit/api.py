@@ -19,6 +19,7 @@ from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_f
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
 from .geometry import body_point_range, fit_range_origin, range_factor
 from .graph.noise import POSE_SIGMA_SCHEMA, gaussian, pose_sigma_schema, pose_sigmas
+from .graph.passes import pass_token
 from .graph.vectorized import VectorizedResidual, instance_factor as vectorized_factor
 from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
                               vector_type)
@@ -34,7 +35,7 @@ from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.11"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -53,6 +54,8 @@ API_VERSION = "1.10"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      `fusionkit crossval` reports held-out errors of, pose_parts (a pose residual's position and orientation);
 #      experiment design: d_optimal, Choice, information, prior_information, compared_with_random;
 #      ctx.add_diagnostic(..., identifiability=True): a family's analysis joins the identifiability report
+# 1.11: pass_token(values): fusionkit's evaluator is costing or linearizing this very Values object (factors
+#      with many variables that share one evaluation read them once per pass)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -82,6 +85,8 @@ __all__ = [
     "CLOCK_SCHEMA", "clock_times",
     # factors evaluated many at a time (ctx.add_vectorized) and the SE(3) and SE(2) arrays they are written with
     "VectorizedResidual", "vectorized_factor", "lie", "se2",
+    # CustomFactors sharing one evaluation: the pass of fusionkit's evaluator they are called in
+    "pass_token",
     # what a robot model draws of itself (RobotModel.geometry)
     "Points", "Lines",
     # FactorType.separation_hint: which elements of a parameter a group names

@@ -6,6 +6,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
+from .passes import evaluation_pass
 from .vectorized import ValueReader, VectorizedGroup
 
 MAX_VECTORIZED_VARIABLES = 3  # GTSAM's Python bindings build Jacobian factors of at most three blocks
@@ -49,7 +50,8 @@ class GraphEvaluator:
         return max(counts.values(), default=0)
 
     def linearize(self, values: gtsam.Values) -> gtsam.GaussianFactorGraph:
-        linear = self.plain.linearize(values)
+        with evaluation_pass(values):
+            linear = self.plain.linearize(values)
         reader = ValueReader(values)
         for group, _ in self.groups:
             for factor in group.linear_factors(reader):
@@ -62,13 +64,16 @@ class GraphEvaluator:
 
     def error(self, values: gtsam.Values) -> float:
         reader = ValueReader(values)
-        return float(self.plain.error(values) + sum(float(np.sum(g.errors(reader))) for g, _ in self.groups))
+        with evaluation_pass(values):
+            plain = self.plain.error(values)
+        return float(plain + sum(float(np.sum(g.errors(reader))) for g, _ in self.groups))
 
     def record_errors(self, values: gtsam.Values) -> np.ndarray:
         """Each record's error (0.5 |whitened residual|^2, or its kernel's loss), in record order."""
         out = np.empty(len(self.records))
-        for i in self.plain_rows:
-            out[i] = self.records[i].factor.error(values)
+        with evaluation_pass(values):
+            for i in self.plain_rows:
+                out[i] = self.records[i].factor.error(values)
         reader = ValueReader(values)
         for group, indices in self.groups:
             out[indices] = group.errors(reader)
@@ -77,8 +82,9 @@ class GraphEvaluator:
     def record_residuals(self, values: gtsam.Values) -> list[np.ndarray]:
         """Each record's unwhitened residual, in record order."""
         out: list[np.ndarray] = [np.empty(0)] * len(self.records)
-        for i in self.plain_rows:
-            out[i] = np.asarray(self.records[i].factor.unwhitenedError(values), dtype=float)
+        with evaluation_pass(values):
+            for i in self.plain_rows:
+                out[i] = np.asarray(self.records[i].factor.unwhitenedError(values), dtype=float)
         reader = ValueReader(values)
         for group, indices in self.groups:
             for i, r in zip(indices, group.residuals(reader)):

@@ -5,15 +5,18 @@ entry at the same parameter values. The entry's factors therefore share one eval
 factor called at parameter values not seen before has every factor of the entry (those whose
 variables the values hold) evaluated in one vectorized pass (batch.py), and the others read their
 residual and Jacobians from it. A factor's cached result is used only when every one of its
-variables equals, bit for bit, the values it was computed at (its readers return the raw bytes); anything else is computed again, so
-the result is always the factor's own (incremental solvers that add one factor at a time get it
-evaluated alone).
+variables equals, bit for bit, the values it was computed at (its readers return the raw bytes), or
+when it was computed in the current pass of fusionkit's evaluator over this very Values object
+(`pass_token`: then nothing is read again); anything else is computed again, so the result is always
+the factor's own (incremental solvers that add one factor at a time get it evaluated alone).
 """
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
+
+from fusionkit.api import pass_token
 
 from . import batch
 from .chain import SerialChain
@@ -68,12 +71,19 @@ class EntryEvaluator:
         self.H = [np.zeros((n, dim, w)) for w in widths]
         self.fingerprints: list[tuple | None] = [None] * n
         self.last_shared: tuple | None = None
+        self.token: object | None = None  # the evaluation pass whose values every present factor is at
+        self.present = np.zeros(n, bool)  # the factors evaluated in that pass
 
     def error(self, i: int, this, values: gtsam.Values, H) -> np.ndarray:
         """The CustomFactor callback of factor i (bind i with functools.partial)."""
-        fp = tuple([read(values, k) for read, k in zip(self.readers, self.keys[i])])
-        if fp != self.fingerprints[i]:
-            self._refresh(i, fp, values)
+        token = pass_token(values)
+        if token is not None and token is not self.token:  # a new pass: every factor the values hold, at once
+            self.token = token
+            self.present = self._evaluate_present(values)
+        if token is None or token is not self.token or not self.present[i]:
+            fp = tuple([read(values, k) for read, k in zip(self.readers, self.keys[i])])
+            if fp != self.fingerprints[i]:
+                self._refresh(i, fp, values)
         if H is not None:
             for j, block in enumerate(self.H):
                 H[j] = block[i]
@@ -87,18 +97,21 @@ class EntryEvaluator:
         if fp != self.fingerprints[i]:
             self._compute([i], [fp])
 
-    def _evaluate_present(self, values: gtsam.Values) -> None:
-        """Every factor whose variables `values` holds and whose cached result is not at them."""
+    def _evaluate_present(self, values: gtsam.Values) -> np.ndarray:
+        """Every factor whose variables `values` holds and whose cached result is not at them; which are held."""
         read = {k: r(values, k) for k, r in self.reader_of.items() if values.exists(k)}
         stale, fps = [], []
+        held = np.zeros(len(self.keys), bool)
         for i, ks in enumerate(self.keys):
             if all(k in read for k in ks):
+                held[i] = True
                 fp = tuple([read[k] for k in ks])
                 if fp != self.fingerprints[i]:
                     stale.append(i)
                     fps.append(fp)
         if stale:
             self._compute(stale, fps)
+        return held
 
     def _column(self, fps: list[tuple], p: int, stacked: bool = False):
         """Variable p's value for the samples: one value when every sample shares it, else stacked."""

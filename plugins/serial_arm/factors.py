@@ -50,8 +50,11 @@ def entry_arm(desc, spec: Spec):
     return arm_of(desc, spec.get("tool_frame"))
 
 
-def parameter_keys(ctx, robot: str, variables: list[tuple[str, int | None]], k: int) -> list[int]:
-    return [ctx.parameter(robot, name, index, k) for name, index in variables]
+def parameter_keys(ctx, robot: str, variables: list[tuple[str, int | None]], states) -> list[list[int]]:
+    """The variables' keys at each state k of `states`: a static parameter's key looked up once."""
+    desc = ctx.robot(robot)
+    static = {v: ctx.parameter(robot, *v) for v in variables if not desc.parameters[v[0]].time_varying}
+    return [[static[v] if v in static else ctx.parameter(robot, *v, k) for v in variables] for k in states]
 
 
 def check_arm_entry(spec: Spec, scope, tools: tuple[str, ...] = ("pose3",), base: bool = True):
@@ -136,11 +139,12 @@ class ArmMeasurement(FactorType):
         noise = ctx.noise(self.sigmas(spec), spec)
         ks, rows = self.samples(ctx, spec)
         states = ks.reshape(len(ks), -1)  # relative: pairs; the parameters are those of the later state
-        keys = [[ctx.state_key(robot, k) for k in pair] + parameter_keys(ctx, robot, variables, pair[-1])
-                for pair in states.tolist()]
+        pairs = states.tolist()
+        keys = [[ctx.state_key(robot, k) for k in pair] + params
+                for pair, params in zip(pairs, parameter_keys(ctx, robot, variables, [p[-1] for p in pairs]))]
         evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows, spec),
                                    keys)
-        for i, (pair, key_list) in enumerate(zip(states.tolist(), keys)):
+        for i, (pair, key_list) in enumerate(zip(pairs, keys)):
             ctx.add(marker_factor(noise, key_list, evaluator, i), spec, ctx.state_time(robot, pair[-1]))
 
     def residual_parts(self, ctx, spec: Spec):

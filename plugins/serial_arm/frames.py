@@ -5,7 +5,8 @@ The regressor of a marker entry depends on where it is taken: a marker at the UR
 starting at zero) sits on the last wrist axis, whose offset then moves nothing -- held as unidentifiable though the
 real marker, a few centimetres off the axis, determines it. Gauss-Newton on the entry's own residuals (the tracker
 position e = t(B F(q) M) - z, or the pose e = Log(z^-1 B F(q) M)) over the base B and tool M only, from the nominal
-values, gives the data-informed point; a step that does not lower the cost ends it.
+values, gives the data-informed point (on at most 200 samples spread over the entry); a step that does not lower the
+cost ends it.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from .batch import marker_poses, pose_residuals, position_residuals
 from .kinematics import Layout, Parameters
 
 ROUNDS = 20
+SAMPLES = 200  # at most this many samples, evenly spread, place the frames: a linearization point, not an estimate
 
 
 def _residuals(chain, layout: Layout, p: Parameters, q: np.ndarray, measured: np.ndarray, kind: str,
@@ -48,6 +50,8 @@ def frame_fit(chain, layout: Layout, p: Parameters, q: np.ndarray, measured: np.
     width = (6 if layout.base else 0) + ({"pose3": 6, "point3": 3}.get(layout.tool, 0))
     if kind not in ("position", "pose") or not width:
         return p
+    every = max(1, len(q) // SAMPLES)
+    q, measured = q[::every], measured[::every]
     e, blocks = _residuals(chain, layout, p, q, measured, kind, True)
     cost = float(np.sum(e * e))
     for _ in range(ROUNDS):
