@@ -116,12 +116,12 @@ def batch_chain(chain: SerialChain) -> BatchChain:
 
 def marker_poses(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameters, jacobians: bool = False) -> Poses:
     """meas_T_marker for joint values q (N, n): kinematics.marker_pose for every sample. `p`: base and
-    tool (4, 4) or (N, 4, 4), `offsets` and `compliances` lists of scalars or (N,) arrays, `placements` of (w,) or
-    (N, w)."""
+    tool (4, 4) or (N, 4, 4), `offsets` and `compliances` lists of scalars or (N,) arrays, `placements` and
+    `mass_compliances` of (w,) or (N, w)."""
     bc = batch_chain(chain)
     q = np.asarray(q, float)
     dq, deltas = joint_deltas(layout, p, chain.n)
-    q_eff, dq_eff, tau = deflected(chain, layout, q + dq, p, jacobians)
+    q_eff, dq_eff, tau, unit = deflected(chain, layout, q + dq, p, jacobians)
     F, J_f, placement_blocks = bc.flange(q_eff, deltas, jacobians)
     B = np.eye(4) if p.base is None else np.asarray(p.base, float)
     M = np.eye(4) if p.tool is None else np.asarray(p.tool, float)
@@ -142,6 +142,7 @@ def marker_poses(chain: SerialChain, layout: Layout, q: np.ndarray, p: Parameter
     blocks += [J_q[:, :, [j]] for j in layout.offsets]
     blocks += [ad_tool @ placement_blocks[j][:, :, list(axes)] for j, axes in layout.placements]
     blocks += [J_m[:, :, [j]] * tau[:, None, j, None] for j in layout.compliances]
+    blocks += [J_m[:, :, [j]] * unit[:, None, :, j] for j in layout.mass_compliances]
     return Poses(T, blocks)
 
 

@@ -186,12 +186,24 @@ class SerialChain:
             copy.copy(self)._select(frame)
         return self._tools[frame]
 
-    def gravity_torques(self, q: np.ndarray, payload: tuple[float, ...] = (), jacobians: bool = False):
+    def gravity_torques(self, q: np.ndarray, payload: tuple = (), jacobians: bool = False):
         """The gravity torque on each listed joint (N, n; N m, or N for a prismatic joint) at joint values q (N, n)
-        from the URDF's inertials (`gravity`: -9.81 m/s^2 along the URDF root's z unless set) plus `payload` (frame, mass kg, x, y,
-        z m in that frame), a coupled joint's torque carried to its leaders (virtual work: tau = V^T g); with
-        `jacobians` also d tau / d q (N, n, n), else None."""
-        model, data = self._gravity_model((self.model.getFrameId(payload[0]), *payload[1:]) if payload else ())
+        from the URDF's inertials (`gravity`: -9.81 m/s^2 along the URDF root's z unless set) plus `payload` (frame,
+        mass kg, x, y, z m in that frame), a coupled joint's torque carried to its leaders (virtual work:
+        tau = V^T g); with `jacobians` also d tau / d q (N, n, n), else None."""
+        key = ("urdf", self.model.getFrameId(payload[0]), *payload[1:]) if payload else ("urdf",)
+        return self._torques(self._gravity_model(key), q, jacobians)
+
+    def unit_mass_torques(self, q: np.ndarray, points: tuple, jacobians: bool = False):
+        """The gravity torque on each listed joint of 1 kg at each point (frame, x, y, z m in that frame) alone, the
+        URDF's inertials left out: (N, M, n) N m per kg, and with `jacobians` d / d q (N, M, n, n)."""
+        out = [self._torques(self._gravity_model(("unit", self.model.getFrameId(point[0]), 1.0, *point[1:])), q,
+                             jacobians) for point in points]
+        tau = np.stack([t for t, _ in out], axis=1)
+        return tau, np.stack([d for _, d in out], axis=1) if jacobians else None
+
+    def _torques(self, model_data: tuple, q: np.ndarray, jacobians: bool):
+        model, data = model_data
         q = np.atleast_2d(np.asarray(q, float))
         tau = np.empty(q.shape)
         dtau = np.empty(q.shape + (self.n,)) if jacobians else None
@@ -204,18 +216,21 @@ class SerialChain:
         return tau, dtau
 
     def _gravity_model(self, key: tuple) -> tuple:
-        """The model gravity torques are computed on: the URDF's nominal placements (placement errors change
-        torques by their own small fraction) and inertials, a payload (key: tool frame id, mass, x, y, z) added to
-        the tool frame's joint."""
+        """The model gravity torques are computed on, with the URDF's nominal placements (placement errors change
+        torques by their own small fraction). key ("urdf",): the URDF's inertials; ("urdf", frame id, mass, x, y,
+        z): plus a payload there; ("unit", frame id, 1, x, y, z): only 1 kg there."""
         if key not in self._gravity:
             model = pin.Model(self.model)
             model.gravity = pin.Motion(self.gravity, np.zeros(3))
             for j, jid in enumerate(self.jids):
                 model.jointPlacements[jid] = self.nominal[j]
-            if key:
-                frame = model.frames[key[0]]
-                at = frame.placement.act(np.asarray(key[2:5], float))
-                model.inertias[frame.parentJoint] += pin.Inertia(float(key[1]), at, np.zeros((3, 3)))
+            if key[0] == "unit":
+                for jid in range(model.njoints):
+                    model.inertias[jid] = pin.Inertia.Zero()
+            if len(key) > 1:
+                frame = model.frames[key[1]]
+                at = frame.placement.act(np.asarray(key[3:6], float))
+                model.inertias[frame.parentJoint] += pin.Inertia(float(key[2]), at, np.zeros((3, 3)))
             self._gravity[key] = (model, model.createData())
         return self._gravity[key]
 

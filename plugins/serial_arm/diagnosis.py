@@ -26,7 +26,7 @@ from .residuals import held_axes_residual
 
 HOLD_SIGMA = 1e-9  # prior sigma (SI units per axis) holding an unidentifiable parameter at its nominal value
 MARKER_TYPES = ("arm.tool_pose", "arm.tool_position", "arm.relative_tool_pose")
-ROLE = {"base": 0, "tool": 1, "offset": 2, "placement": 3, "compliance": 4}  # the priority of the regressor's columns
+ROLE = {"base": 0, "tool": 1, "offset": 2, "placement": 3, "compliance": 4, "mass_compliance": 5}  # the priority of the regressor's columns
 
 
 def _hold_error(vartype: str, value, axes: list[int], this, v: gtsam.Values, H):
@@ -43,7 +43,8 @@ def hold_factor(key: int, vartype: str, value, axes: list[int], sigma: float = H
 def parameter_axes(layout: Layout, variables: list, desc, chain) -> list[tuple]:
     """(role, parameter, index, [(axis position, axis label, unit)]) of each layout variable."""
     roles = ["base"] * layout.base + ["tool"] * bool(layout.tool) + ["offset"] * len(layout.offsets) + \
-        ["placement"] * len(layout.placements) + ["compliance"] * len(layout.compliances)
+        ["placement"] * len(layout.placements) + ["compliance"] * len(layout.compliances) + \
+        ["mass_compliance"] * len(layout.mass_compliances)
     out = []
     for p, (role, (name, index)) in enumerate(zip(roles, variables)):
         vt = desc.parameters[name].vartype.name
@@ -54,8 +55,12 @@ def parameter_axes(layout: Layout, variables: list, desc, chain) -> list[tuple]:
             j = layout.offsets[p - layout.base - bool(layout.tool)]
             axes = [(0, "", "m" if chain.prismatic[j] else "rad")]
         elif role == "compliance":
-            j = layout.compliances[p - len(roles) + len(layout.compliances)]
+            j = layout.compliances[p - len(roles) + len(layout.mass_compliances) + len(layout.compliances)]
             axes = [(0, "", "m/N" if chain.prismatic[j] else "rad/(N m)")]
+        elif role == "mass_compliance":
+            j = layout.mass_compliances[p - len(roles) + len(layout.mass_compliances)]
+            unit = "m kg/N" if chain.prismatic[j] else "rad kg/(N m)"
+            axes = [(a, f".{link}", unit) for a, (link, *_) in enumerate(layout.lumped)]
         else:
             j, group_axes = layout.placements[p - layout.base - bool(layout.tool) - len(layout.offsets)]
             axes = [(a, f".{AXIS_NAMES[g]}", "rad" if g < 3 else "m") for a, g in enumerate(group_axes)]
@@ -129,7 +134,7 @@ def _regressor(ctx, robot: str, desc, entries: list[Spec]) -> tuple[np.ndarray, 
                     targets.append((c, col))
                 c += 1
         pieces.append((A, targets))
-    order = sorted(range(len(info)), key=lambda col: (ROLE[info[col][0]], col))  # base, tool, offsets, placements, compliances
+    order = sorted(range(len(info)), key=lambda col: (ROLE[info[col][0]], col))  # base, tool, offsets, placements, compliances, mass compliances
     position = {col: i for i, col in enumerate(order)}
     A = np.zeros((sum(len(a) for a, _ in pieces), len(order)))
     r = 0

@@ -2,14 +2,16 @@
 joint compliances written beside the calibrated URDF, and the deflected pose they predict.
 
 `robots/<robot>.compliance.yaml` holds what the URDF cannot: each compliant joint's compliance (rad per N m; m per N
-if prismatic), the gravity vector in the URDF's root frame (the measurement frame the export adds: the base's -z
+if prismatic) and, with lumped masses, each joint's products of compliance and mass with the masses' points, the
+gravity vector in the URDF's root frame (the measurement frame the export adds: the base's -z
 seen from there), the joint list and couplings (a URDF <mimic> has one leader). The deflected pose at encoder
 readings q and a payload is
 
-    T(q) = FK_urdf(q + C tau(q))
+    T(q) = FK_urdf(q + C tau(q) + sum_i P_i tau_i(q))
 
-with tau the gravity torques of the exported URDF's inertials plus the payload (Pinocchio), FK the exported URDF's
-forward kinematics (joint offsets and placement errors built into its origins).
+with tau the gravity torques of the exported URDF's inertials plus the payload, tau_i those of 1 kg at lumped mass
+i (Pinocchio), FK the exported URDF's forward kinematics (joint offsets and placement errors built into its
+origins).
 """
 
 from __future__ import annotations
@@ -25,12 +27,15 @@ from .kinematics import Layout, Parameters, deflected
 FORMAT = "fusionkit serial_arm compliances 1"
 
 
-def compliance_document(chain: SerialChain, compliances: dict[str, float], gravity: np.ndarray, urdf: str,
-                        frames: list[str], couplings: list[Coupling], payload: tuple, note: str) -> str:
+def compliance_document(chain: SerialChain, compliances: dict[str, float], mass_compliances: dict[str, list],
+                        lumped: tuple, gravity: np.ndarray, urdf: str, frames: list[str], couplings: list[Coupling],
+                        payload: tuple, note: str) -> str:
     """The YAML text of `robots/<robot>.compliance.yaml` (module docstring)."""
     doc = {"format": FORMAT, "urdf": urdf, "note": note, "joints": list(chain.joint_names),
            "couplings": [{"joint": c.joint, "of": dict(c.leaders), "offset": c.offset} for c in couplings],
            "compliance": {name: float(v) for name, v in compliances.items()},
+           "mass_compliance": {name: [float(x) for x in v] for name, v in mass_compliances.items()},
+           "lumped_masses": [{"link": m[0], "center": [float(x) for x in m[1:4]]} for m in lumped],
            "gravity": [float(x) for x in gravity], "frames": list(frames),
            "payload": {"frame": payload[0], "mass": payload[1], "center": list(payload[2:5])} if payload else None}
     return yaml.safe_dump(doc, sort_keys=False)
@@ -54,11 +59,13 @@ def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, pay
     load = payload if payload is not None else doc.get("payload")
     carried = (load.get("frame", chain.tool_frame), float(load["mass"]), *map(float, load.get("center", (0, 0, 0)))) \
         if load else ()
-    joints = [doc["joints"].index(name) for name in doc["compliance"]]
-    layout = Layout(compliances=tuple(joints), payload=carried)
+    layout = Layout(compliances=tuple(doc["joints"].index(name) for name in doc["compliance"]), payload=carried,
+                    mass_compliances=tuple(doc["joints"].index(name) for name in doc["mass_compliance"]),
+                    lumped=tuple((m["link"], *m["center"]) for m in doc["lumped_masses"]))
+    p = Parameters(compliances=np.array(list(doc["compliance"].values())),
+                   mass_compliances=[np.asarray(v, float) for v in doc["mass_compliance"].values()])
     single = np.ndim(q) == 1
-    q_eff, _, _ = deflected(chain, layout, np.atleast_2d(np.asarray(q, float)),
-                            Parameters(compliances=np.array(list(doc["compliance"].values()))))
+    q_eff, _, _, _ = deflected(chain, layout, np.atleast_2d(np.asarray(q, float)), p)
     T = np.array([chain.flange(qi).T for qi in q_eff])
     return T[0] if single else T
 

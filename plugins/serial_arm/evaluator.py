@@ -55,12 +55,12 @@ class EntryEvaluator:
         tool = {"pose3": _read_pose3, "point3": _read_point3}.get(layout.tool)
         self.readers = ([_read_vector] * self.joints + [_read_pose3] * layout.base + ([tool] if tool else [])
                         + [_read_scalar] * len(layout.offsets) + [_read_vector] * len(layout.placements)
-                        + [_read_scalar] * len(layout.compliances))
+                        + [_read_scalar] * len(layout.compliances) + [_read_vector] * len(layout.mass_compliances))
         self.reader_of = {k: r for ks in self.keys for k, r in zip(ks, self.readers)}
         tool_shape = {"pose3": (4, 4), "point3": (3,)}.get(layout.tool)
         self.shapes = ([(chain.n,)] * self.joints + [(4, 4)] * layout.base + ([tool_shape] if tool_shape else [])
                        + [None] * len(layout.offsets) + [(len(axes),) for _, axes in layout.placements]
-                       + [None] * len(layout.compliances))
+                       + [None] * len(layout.compliances) + [(len(layout.lumped),)] * len(layout.mass_compliances))
         n = len(self.keys)
         # variables every factor shares (static parameters): a change in them means a new linearization
         self.shared = [p for p in range(self.joints, len(self.readers))
@@ -140,6 +140,8 @@ class EntryEvaluator:
         out.placements = [self._column(fps, p + j) for j in range(len(lay.placements))]
         p += len(lay.placements)
         out.compliances = [self._column(fps, p + j) for j in range(len(lay.compliances))]
+        p += len(lay.compliances)
+        out.mass_compliances = [self._column(fps, p + j) for j in range(len(lay.mass_compliances))]
         return out
 
     def _compute(self, idx: list[int], fps: list[tuple]) -> None:

@@ -129,12 +129,12 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
 
 
 def calibrated_errors(calibrated: RobotDescription) -> tuple[SerialChain, dict, np.ndarray, dict[str, np.ndarray], list]:
-    """(chain, {joint id: (offset, placement twist)}, base B, {tool frame: marker M}, variables, {joint: compliance})
-    of a calibrated
+    """(chain, {joint id: (offset, placement twist)}, base B, {tool frame: marker M}, variables, ({joint: compliance},
+    {joint: mass compliances})) of a calibrated
     description, every tool frame's joints together; M = I for a tool frame without a marker parameter. A coupled
     joint moves by its coupling of its leaders' offsets (its value stays the coupling of the readings)."""
     errors: dict[int, tuple[float, np.ndarray]] = {}
-    markers, variables, base, compliances = {}, [], np.eye(4), {}
+    markers, variables, base, compliances, mass_compliances = {}, [], np.eye(4), {}, {}
     for frame in tool_frames(calibrated.extra):
         arm = arm_of(calibrated, frame)
         tool = calibrated.parameters[arm.tool].vartype.name if arm.tool else ""
@@ -150,7 +150,9 @@ def calibrated_errors(calibrated: RobotDescription) -> tuple[SerialChain, dict, 
         markers[frame] = np.eye(4) if p.tool is None else p.tool
         variables += names
         compliances.update({arm.chain.joint_names[j]: float(c) for j, c in zip(layout.compliances, p.compliances)})
-    return arm.chain, errors, base, markers, list(dict.fromkeys(variables)), compliances
+        mass_compliances.update({arm.chain.joint_names[j]: [float(x) for x in v]
+                                 for j, v in zip(layout.mass_compliances, p.mass_compliances)})
+    return arm.chain, errors, base, markers, list(dict.fromkeys(variables)), (compliances, mass_compliances)
 
 
 def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
@@ -166,11 +168,11 @@ def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
             + (f" Time-varying parameters at their last estimated value: {', '.join(drifting)}." if drifting else ""))
     text, marker_links = calibrated_urdf(source.read_text(encoding="utf-8"), chain, errors, base, markers, note)
     out = {f"robots/{robot}.urdf": text}
-    if compliances:
+    if any(compliances):
         gravity = (base @ chain.base_T_universe)[:3, :3] @ chain.gravity  # the URDF root's gravity, seen from the
         out[f"robots/{robot}.compliance.yaml"] = compliance_document(  # measurement frame (the exported root)
-            chain, compliances, gravity, f"{robot}.urdf", marker_links, couplings_of(calibrated.extra),
-            arm_of(calibrated).payload,
+            chain, *compliances, arm_of(calibrated).lumped, gravity, f"{robot}.urdf", marker_links,
+            couplings_of(calibrated.extra), arm_of(calibrated).payload,
             f"robot {robot!r} ({calibrated.name}): joint compliances beside {robot}.urdf; deflected pose = "
             "FK(q + compliance x gravity torque(q)) (fusionkit_plugins.serial_arm.elastic.deflected_pose)")
     return out

@@ -41,8 +41,11 @@ def entry_layout(arm, spec: Spec, tool_type: str, base: bool = True) -> tuple[La
     variables += [(g.parameter, i) for g in arm.placements for i, j in enumerate(g.joints) if j in active]
     compliances = tuple(j for g in arm.compliances for j in g.joints if j in active)
     variables += [(g.parameter, i) for g in arm.compliances for i, j in enumerate(g.joints) if j in active]
+    mass_compliances = tuple(j for g in arm.mass_compliances for j in g.joints if j in active)
+    variables += [(g.parameter, i) for g in arm.mass_compliances for i, j in enumerate(g.joints) if j in active]
     return Layout(bool(base_name), tool_type if tool_name else "", offsets, placements, compliances,
-                  arm.payload if compliances else ()), variables
+                  arm.payload if compliances else (), mass_compliances, arm.lumped if mass_compliances else ()), \
+        variables
 
 
 def entry_arm(desc, spec: Spec):
@@ -301,16 +304,17 @@ class JointEncoders(FactorType):
 
 def example_arm(rng: np.random.Generator, tool: str, base: bool = True) -> tuple:
     """A UR10 (example-robot-data) with a random base, tool, two joint offsets, placement errors on four joints
-    (one joint in two placement entries) and compliances of three joints under gravity with a 3 kg payload at the
-    flange: (chain, layout, parameters)."""
+    (one joint in two placement entries), compliances of three joints under gravity with a 3 kg payload at the
+    flange and mass compliances of two joints with two lumped masses: (chain, layout, parameters)."""
     chain = chain_from(urdf_path(PREFIX + "ur10", Path(".")), "base_link", "tool0", UR_JOINTS)
     layout = Layout(base, tool, (1, 3), ((0, (0, 1, 2, 3, 4, 5)), (2, (3, 5)), (2, (1,)), (5, (2, 4))), (1, 2, 4),
-                    ("tool0", 3.0, 0.0, 0.02, 0.05))
+                    ("tool0", 3.0, 0.0, 0.02, 0.05), (1, 3), (("forearm_link", 0.0, 0.0, 0.3), ("wrist_3_link", 0.0,
+                                                                                                  0.05, 0.0)))
     pose = lambda: gtsam.Pose3.Expmap(rng.normal(scale=0.5, size=6)).matrix()  # noqa: E731
     tool_value = pose() if tool == "pose3" else np.block([[np.eye(3), rng.normal(size=(3, 1))], [0, 0, 0, 1]])
     return chain, layout, Parameters(pose() if base else None, tool_value, rng.normal(scale=0.1, size=2),
                                      [rng.normal(scale=0.1, size=len(axes)) for _, axes in layout.placements],
-                                     rng.uniform(0.0, 3e-4, size=3))
+                                     rng.uniform(0.0, 3e-4, size=3), [rng.uniform(0.0, 1e-3, size=2) for _ in range(2)])
 
 
 def example_values(layout: Layout, p: Parameters, *joint_vectors: np.ndarray) -> gtsam.Values:
@@ -319,7 +323,7 @@ def example_values(layout: Layout, p: Parameters, *joint_vectors: np.ndarray) ->
     items = list(joint_vectors) + ([gtsam.Pose3(p.base)] if layout.base else [])
     items += [gtsam.Pose3(p.tool) if layout.tool == "pose3" else p.tool[:3, 3].copy()] if layout.tool else []
     items += [float(v) for v in p.offsets] + [np.asarray(v, float) for v in p.placements]
-    items += [float(v) for v in p.compliances]
+    items += [float(v) for v in p.compliances] + [np.asarray(v, float) for v in p.mass_compliances]
     for key, item in enumerate(items):
         values.insert(key, item)
     return values

@@ -20,6 +20,9 @@ kinematic parameters (docs/reference/robot_description.md#model-serial_arm).
         - {parameter: placement, joints: [...], axes: [tx, ty, tz, rx, ry, rz]}
       compliances:                     # scalar parameters, one per listed joint: deflection = compliance * gravity
         - {parameter: compliance, joints: [shoulder_lift_joint, elbow_joint]}   # torque (rad per N m; URDF inertials)
+      lumped_masses: [forearm_link, {link: wrist_3_link, center: [0, 0, 0.05]}]   # without (right) inertials:
+      mass_compliances:                # vectorM parameters, one per listed joint: deflection = sum_i P_i * torque of
+        - {parameter: mass_compliance, joints: [shoulder_lift_joint]}   # 1 kg at lumped mass i (P: rad/(N m) x kg)
     payload: {mass: 2.0, center: [0, 0, 0.05], frame: tool0}   # optional known load (kg, m in `frame`, default the
                                                                 # first tool frame): adds to the gravity torques
 """
@@ -46,6 +49,11 @@ COUPLING = {"type": "object",
             "required": ["joint", "of"], "additionalProperties": False}
 OFFSET_GROUP = {"type": "object", "properties": {"parameter": {"type": "string"}, "joints": NAMES},
                 "required": ["parameter", "joints"], "additionalProperties": False}
+LUMPED_MASS = {"oneOf": [{"type": "string"},
+                        {"type": "object", "properties": {"link": {"type": "string"},
+                                                          "center": {"type": "array", "items": {"type": "number"},
+                                                                     "minItems": 3, "maxItems": 3}},
+                         "required": ["link"], "additionalProperties": False}]}
 PLACEMENT_GROUP = {"type": "object",
                    "properties": {"parameter": {"type": "string"}, "joints": NAMES,
                                   "axes": {"type": "array", "items": {"enum": ["tx", "ty", "tz", "rx", "ry", "rz"]},
@@ -74,6 +82,8 @@ class Arm:
     placements: tuple[Group, ...]
     compliances: tuple[Group, ...] = ()
     payload: tuple = ()           # (frame, mass kg, x, y, z m) of a known load, () for none
+    mass_compliances: tuple[Group, ...] = ()
+    lumped: tuple = ()            # (link, x, y, z m) of each lumped mass
 
 
 def tool_frames(extra: dict) -> tuple[str, ...]:
@@ -133,15 +143,18 @@ def kinematic_groups(extra: dict, frame: str | None = None) -> tuple:
     load = extra.get("payload")
     payload = (load.get("frame", tool_frames(extra)[0]), float(load["mass"]),
                *map(float, load.get("center", (0.0, 0.0, 0.0)))) if load else ()
+    lumped = tuple((m, 0.0, 0.0, 0.0) if isinstance(m, str) else (m["link"], *map(float, m.get("center", (0, 0, 0))))
+                   for m in kin.get("lumped_masses", ()))
     return kin.get("base"), marker_of(extra, frame or tool_frames(extra)[0]), groups("joint_offsets"), \
-        groups("placements"), groups("compliances"), payload
+        groups("placements"), groups("compliances"), payload, groups("mass_compliances"), lumped
 
 
 def group_joints(extra: dict, parameter: str) -> list[str] | None:
     """The joints of the kinematic group (joint offsets or placements) whose parameter is `parameter`, in its
     values' order: the names of its elements (`joint_offsets[elbow_joint]`); None if no group has it."""
     kin = extra.get("kinematics") or {}
-    for group in [*kin.get("joint_offsets", ()), *kin.get("placements", ()), *kin.get("compliances", ())]:
+    for group in [*kin.get("joint_offsets", ()), *kin.get("placements", ()), *kin.get("compliances", ()),
+                  *kin.get("mass_compliances", ())]:
         if group["parameter"] == parameter:
             return list(group["joints"])
     return None
@@ -186,6 +199,10 @@ class SerialArmModel(RobotModel):
                                                                                    {"type": "string"}}]},
                                                            "joint_offsets": {"type": "array", "items": OFFSET_GROUP},
                                                            "compliances": {"type": "array", "items": OFFSET_GROUP},
+                                                           "lumped_masses": {"type": "array", "minItems": 1,
+                                                                             "items": LUMPED_MASS},
+                                                           "mass_compliances": {"type": "array",
+                                                                                "items": OFFSET_GROUP},
                                                            "placements": {"type": "array", "items": PLACEMENT_GROUP}},
                                             "additionalProperties": False}},
               "required": ["urdf", "base_frame", "tool_frame", "joints"], "additionalProperties": False}
@@ -212,11 +229,16 @@ class SerialArmModel(RobotModel):
             check_pose_parameter(desc, ("kinematics", "tool"), tool, ("pose3", "point3"))
         joints = desc.extra["joints"]
         taken: set = set()
-        for key in ("joint_offsets", "placements", "compliances"):
+        lumped = len(kin.get("lumped_masses", ()))
+        if kin.get("mass_compliances") and not lumped:
+            raise desc.error(("kinematics", "mass_compliances"), "mass compliances need `lumped_masses:` (the links "
+                             "whose masses they multiply)")
+        for key in ("joint_offsets", "placements", "compliances", "mass_compliances"):
             for i, group in enumerate(kin.get(key, ())):
                 path = ("kinematics", key, i)
-                dim = len(group.get("axes", [None]))
-                self._check_group(desc, path, group, joints, f"vector{dim}" if key == "placements" else "scalar")
+                dim = len(group["axes"]) if key == "placements" else lumped
+                self._check_group(desc, path, group, joints, f"vector{dim}" if key in ("placements", "mass_compliances")
+                                  else "scalar")
                 for j in group["joints"]:
                     for axis in group.get("axes", ["offset"]):
                         if (key, j, axis) in taken:
@@ -230,8 +252,11 @@ class SerialArmModel(RobotModel):
         return group_joints(desc.extra, parameter)
 
     def axis_names(self, desc: RobotDescription, parameter: str) -> list[str] | None:
-        """A placement group's vector components are the axes its description lists (`tx`, ..., `rz`)."""
+        """A placement group's vector components are the axes its description lists (`tx`, ..., `rz`); a mass
+        compliance's, the lumped masses' links."""
         kin = desc.extra.get("kinematics") or {}
+        if any(g["parameter"] == parameter for g in kin.get("mass_compliances", ())):
+            return [m if isinstance(m, str) else m["link"] for m in kin["lumped_masses"]]
         return next((list(g["axes"]) for g in kin.get("placements", ()) if g["parameter"] == parameter), None)
 
     def geometry(self, robot: str, calibrated: RobotDescription, state: dict) -> list:
@@ -266,6 +291,10 @@ class SerialArmModel(RobotModel):
         load = desc.extra.get("payload")
         if load and not chain.model.existFrame(load.get("frame", tool_frames(desc.extra)[0])):
             raise desc.error(("payload", "frame"), f"the URDF has no frame {load['frame']!r}")
+        for i, mass in enumerate(kin.get("lumped_masses", ())):
+            link = mass if isinstance(mass, str) else mass["link"]
+            if not chain.model.existFrame(link):
+                raise desc.error(("kinematics", "lumped_masses", i), f"the URDF has no link {link!r}")
         for i, group in enumerate(kin.get("compliances", ())):
             for name in group["joints"]:
                 jid = chain.model.getJointId(name)

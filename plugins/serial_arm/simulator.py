@@ -54,7 +54,7 @@ class ArmSimulator(Simulator):
                              "errors": {"type": "object",
                                         "properties": {"base": POSE_NOISE_SCHEMA, "tool": POSE_NOISE_SCHEMA,
                                                        "joint_offsets": POSITIVE, "placements": POSE_NOISE_SCHEMA,
-                                                       "compliances": POSITIVE},
+                                                       "compliances": POSITIVE, "mass_compliances": POSITIVE},
                                         "additionalProperties": False},
                              "drift": {"type": "object",
                                        "properties": {"joint": {"type": "integer", "minimum": 0}, "change": POSITIVE,
@@ -66,7 +66,8 @@ class ArmSimulator(Simulator):
                 "encoder_sigma": 1e-5,
                 "errors": {"base": {"rotation": 0.02, "translation": 0.02},
                            "tool": {"rotation": 0.02, "translation": 0.005}, "joint_offsets": 0.005,
-                           "placements": {"rotation": 0.001, "translation": 0.0005}, "compliances": 5e-5},
+                           "placements": {"rotation": 0.001, "translation": 0.0005}, "compliances": 5e-5,
+                           "mass_compliances": 2.5e-4},
                 "drift": {"joint": 2, "change": 0.0, "random_walk": 0.001}}
 
     def stream_columns(self, params: dict):
@@ -214,11 +215,11 @@ class ArmSimulator(Simulator):
 
 def union_variables(layouts: list) -> list:
     """Every tool frame's layout variables once, ordered as the identifiability diagnostic orders its columns: base,
-    markers, offsets, placements, compliances (within each, in order of first use)."""
+    markers, offsets, placements, compliances, mass compliances (within each, in order of first use)."""
     role = {}
     for layout, names in layouts:
         ends = np.cumsum([layout.base, bool(layout.tool), len(layout.offsets), len(layout.placements),
-                          len(layout.compliances)])
+                          len(layout.compliances), len(layout.mass_compliances)])
         for i, v in enumerate(names):
             role.setdefault(v, int(np.searchsorted(ends, i, side="right")))
     return sorted(role, key=lambda v: role[v])  # stable: first use within a role
@@ -257,6 +258,7 @@ def _error_sigmas(err: dict, layout) -> np.ndarray:
     out += [err["joint_offsets"]] * len(layout.offsets)
     out += [err["placements"]["rotation" if a < 3 else "translation"] for _, axes in layout.placements for a in axes]
     out += [err["compliances"]] * len(layout.compliances)
+    out += [err["mass_compliances"]] * len(layout.lumped) * len(layout.mass_compliances)
     return np.array(out, float)
 
 

@@ -14,7 +14,7 @@ from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 from fusionkit_plugins.serial_arm.chain import Coupling, SerialChain
 
-from arm_helpers import estimated_parameters, held_out_errors, layouts, true_parameters
+from arm_helpers import estimated_parameters, held_out_errors, layouts
 from test_arm_couplings import torso_urdf
 
 TRACKER, ENCODER = 1e-4, 1e-5
@@ -22,7 +22,8 @@ TRACKER, ENCODER = 1e-4, 1e-5
 
 def potential_energy(chain: SerialChain, payload: tuple, q: np.ndarray) -> float:
     import pinocchio as pin
-    model, data = chain._gravity_model((chain.model.getFrameId(payload[0]), *payload[1:]) if payload else ())
+    model, data = chain._gravity_model(("urdf", chain.model.getFrameId(payload[0]), *payload[1:]) if payload
+                                       else ("urdf",))
     return float(pin.computePotentialEnergy(model, data, chain._configuration(q)))
 
 
@@ -122,3 +123,88 @@ def test_a_compliance_on_a_joint_carrying_no_mass_is_refused(tmp_path, workspace
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and "kinematics.compliances[0].joints: joint 'b' carries no mass in the URDF" in err
     assert robot_description_data("ur10_elastic")["kinematics"]["compliances"]
+
+
+def test_lumped_masses_at_the_urdf_centres_of_mass_with_products_c_m_reproduce_the_compliance_model():
+    """Gravity torques depend on each link's mass and centre of mass only: unit masses at every link's URDF centre of
+    mass, with products P_ji = c_j m_i, deflect the UR10 exactly as compliances c_j with the URDF's inertials (to
+    1e-12 m), Jacobian blocks included (the product's block is the compliance's split by link)."""
+    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.factors import UR_JOINTS
+    from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
+    from fusionkit_plugins.serial_arm.model import chain_from
+    from fusionkit_plugins.serial_arm.urdf import PREFIX, urdf_path
+    from pathlib import Path
+    chain = chain_from(urdf_path(PREFIX + "ur10", Path(".")), "base_link", "tool0", UR_JOINTS)
+    model = chain.model
+    import pinocchio as pin
+    lumped, masses = [], []
+    for jid in range(1, model.njoints):  # each joint's inertia (its links merged) as a point mass at its COM
+        frame = next(f for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == jid)
+        lumped.append((frame.name, *frame.placement.actInv(model.inertias[jid].lever)))
+        masses.append(model.inertias[jid].mass)
+    assert len(masses) == 6 and min(masses) > 0
+    c = np.array([0.0, 3e-5, 6e-5, 1e-4, 2e-4, 0.0])
+    q = np.random.default_rng(3).uniform(-2.5, 2.5, (25, 6))
+    elastic = marker_poses(chain, Layout(compliances=tuple(range(6))), q, Parameters(compliances=c), True)
+    lumped_layout = Layout(mass_compliances=tuple(range(6)), lumped=tuple(lumped))
+    products = [c[j] * np.array(masses) for j in range(6)]
+    by_mass = marker_poses(chain, lumped_layout, q, Parameters(mass_compliances=products), True)
+    assert np.abs(by_mass.T - elastic.T).max() < 1e-12
+    assert np.abs(by_mass.blocks[0] - elastic.blocks[0]).max() < 1e-12  # the joints' Jacobian
+    for j in range(6):  # d/dc_j = sum_i m_i d/dP_ji
+        assert np.abs(by_mass.blocks[1 + j] @ np.array(masses) - elastic.blocks[1 + j][:, :, 0]).max() < 1e-9
+
+
+def test_products_of_compliance_and_lumped_masses_are_calibrated_and_reported_as_identifiable_or_held(tmp_path):
+    """A URDF without (trusted) inertials: the simulated ur10_elastic (compliances with the URDF's inertials)
+    calibrated with lumped masses at three links instead (self-consistency of the physics, not of the parameters):
+    held-out poses at 1.2x the tracker's floor, the identifiability report holds the products that move nothing
+    (the shoulder pan's: gravity never turns a vertical axis) and estimates the others, and the exported URDF with
+    its compliance file predicts what the fit does (to 10 um)."""
+    import yaml
+    from fusionkit.config.loader import load_config
+    from fusionkit.simulate import write_dataset
+    write_dataset("arm.sim", tmp_path, ["description=ur10_elastic", "configurations=60"], seed=2)
+    desc_path = tmp_path / "robots" / "arm.yaml"
+    desc = yaml.safe_load(desc_path.read_text())
+    joints = desc["joints"]
+    kin = desc["kinematics"]
+    kin.pop("compliances")
+    kin["lumped_masses"] = ["forearm_link", "wrist_1_link", {"link": "wrist_3_link", "center": [0.0, 0.0, 0.0]}]
+    kin["mass_compliances"] = [{"parameter": "mass_compliance", "joints": joints[:3]}]
+    desc["parameters"].pop("compliance")
+    desc["parameters"]["mass_compliance"] = {"type": "vector3", "values": [[0.0] * 3] * 3, "sigma": 0.01}
+    desc_path.write_text(yaml.safe_dump(desc, sort_keys=False))
+    run = estimate(load_config(tmp_path / "config.yaml"))
+    d = run.problem.diagnostics["arm: kinematic identifiability"]
+    held = set(d["held"])
+    assert {f"mass_compliance[shoulder_pan_joint].{m}" for m in ("forearm_link", "wrist_1_link", "wrist_3_link")} <= held
+    assert "mass_compliance[shoulder_lift_joint].forearm_link" in d["sigma_from_data"]
+    assert run.solution.chi2_per_dof < 1.5
+    from fusionkit.api import load_robot_description
+    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.factors import entry_layout
+    from fusionkit_plugins.serial_arm.kinematics import parameters_of
+    from fusionkit_plugins.serial_arm.model import arm_of
+    from arm_helpers import typed
+    truth = yaml.safe_load((tmp_path / "truth" / "calibration.yaml").read_text())["robots"]["arm"]
+    true_arm = arm_of(load_robot_description("ur10_elastic"))
+    true_layout, true_vars = entry_layout(true_arm, {}, "pose3")
+    fitted_arm = arm_of(run.config.robots["arm"].description)
+    fitted_layout, fitted_vars = entry_layout(fitted_arm, {}, "pose3")
+    q = np.random.default_rng(4).uniform(-np.pi, np.pi, (300, 6))
+    measured = marker_poses(true_arm.chain, true_layout, q, parameters_of(
+        true_layout, [typed(truth[n], i) for n, i in true_vars])).T[:, :3, 3] + np.random.default_rng(5).normal(
+        0, TRACKER, (300, 3))
+    predicted = marker_poses(fitted_arm.chain, fitted_layout, q, parameters_of(
+        fitted_layout, [run.parameters["arm"][n].values[i or 0] for n, i in fitted_vars])).T[:, :3, 3]
+    rms = np.sqrt(np.mean(np.sum((predicted - measured) ** 2, axis=1)))
+    assert rms < 1.2 * np.sqrt(3) * TRACKER
+    from fusionkit.report.outputs import calibrated_description
+    from fusionkit_plugins.serial_arm.elastic import deflected_pose
+    from fusionkit_plugins.serial_arm.export import urdf_output
+    for name, text in urdf_output("arm", calibrated_description(run, "arm")).items():
+        (tmp_path / name.split("/")[-1]).write_text(text)
+    exported = deflected_pose(tmp_path / "arm.compliance.yaml", q)[:, :3, 3]
+    assert np.abs(exported - predicted).max() < 1e-5  # the export's torques at calibrated link placements
