@@ -73,14 +73,17 @@ class EntryEvaluator:
         self.last_shared: tuple | None = None
         self.token: object | None = None  # the evaluation pass whose values every present factor is at
         self.present = np.zeros(n, bool)  # the factors evaluated in that pass
+        self.with_jacobians = False       # whether that pass computed their Jacobians too
 
     def error(self, i: int, this, values: gtsam.Values, H) -> np.ndarray:
         """The CustomFactor callback of factor i (bind i with functools.partial)."""
         token = pass_token(values)
-        if token is not None and token is not self.token:  # a new pass: every factor the values hold, at once
-            self.token = token
-            self.present = self._evaluate_present(values)
-        if token is None or token is not self.token or not self.present[i]:
+        if token is not None:
+            if token is not self.token or (H is not None and not self.with_jacobians):
+                self._evaluate_pass(values, token, H is not None)
+            if not self.present[i]:
+                token = None
+        if token is None:
             fp = tuple([read(values, k) for read, k in zip(self.readers, self.keys[i])])
             if fp != self.fingerprints[i]:
                 self._refresh(i, fp, values)
@@ -89,74 +92,87 @@ class EntryEvaluator:
                 H[j] = block[i]
         return self.e[i]
 
+    def _evaluate_pass(self, values: gtsam.Values, token: object, jacobians: bool) -> None:
+        """Every factor whose variables `values` holds, at once, for the rest of the evaluation pass `token` (the
+        Jacobians only when the pass linearizes): each variable read once, no fingerprints kept."""
+        read = {k: r(values, k) for k, r in self.reader_of.items() if values.exists(k)}
+        self.present = np.ones(len(self.keys), bool) if len(read) == len(self.reader_of) else \
+            np.array([all(k in read for k in ks) for ks in self.keys], bool)
+        idx = np.flatnonzero(self.present)
+        columns = [[read[self.keys[idx[0]][p]]] if p in self.shared else [read[self.keys[i][p]] for i in idx]
+                   for p in range(len(self.readers))] if len(idx) else []
+        if len(idx):
+            self._compute(idx, columns, jacobians)
+        self.token, self.with_jacobians = token, jacobians
+        for i in idx:
+            self.fingerprints[i] = None  # computed for this pass only
+
     def _refresh(self, i: int, fp: tuple, values: gtsam.Values) -> None:
         shared = tuple(fp[p] for p in self.shared)
         if self.shared and shared != self.last_shared:  # new parameter values: evaluate every factor
             self.last_shared = shared
             self._evaluate_present(values)
         if fp != self.fingerprints[i]:
-            self._compute([i], [fp])
+            self._compute([i], [[v] for v in fp], True, [fp])
 
-    def _evaluate_present(self, values: gtsam.Values) -> np.ndarray:
-        """Every factor whose variables `values` holds and whose cached result is not at them; which are held."""
+    def _evaluate_present(self, values: gtsam.Values) -> None:
+        """Every factor whose variables `values` holds and whose cached result is not at them."""
         read = {k: r(values, k) for k, r in self.reader_of.items() if values.exists(k)}
         stale, fps = [], []
-        held = np.zeros(len(self.keys), bool)
         for i, ks in enumerate(self.keys):
             if all(k in read for k in ks):
-                held[i] = True
                 fp = tuple([read[k] for k in ks])
                 if fp != self.fingerprints[i]:
                     stale.append(i)
                     fps.append(fp)
         if stale:
-            self._compute(stale, fps)
-        return held
+            self._compute(stale, [list(c) for c in zip(*fps)], True, fps)
 
-    def _column(self, fps: list[tuple], p: int, stacked: bool = False):
-        """Variable p's value for the samples: one value when every sample shares it, else stacked."""
+    def _column(self, raw: list, p: int, stacked: bool = False):
+        """Variable p's value for the samples from its raw readings: one value when every sample shares it, else
+        stacked."""
         shape = self.shapes[p]
-        if not stacked and (p in self.shared or len(fps) == 1):
-            return fps[0][p] if shape is None else np.frombuffer(fps[0][p]).reshape(shape)
+        if not stacked and (p in self.shared or len(raw) == 1):
+            return raw[0] if shape is None else np.frombuffer(raw[0]).reshape(shape)
         if shape is None:
-            return np.array([fp[p] for fp in fps])
-        return np.frombuffer(b"".join([fp[p] for fp in fps])).reshape((len(fps),) + shape)
+            return np.array(raw)
+        return np.frombuffer(b"".join(raw)).reshape((len(raw),) + shape)
 
-    def _parameters(self, fps: list[tuple]) -> Parameters:
+    def _parameters(self, columns: list[list]) -> Parameters:
         lay, p = self.layout, self.joints
         out = Parameters()
         if lay.base:
-            out.base, p = self._column(fps, p), p + 1
+            out.base, p = self._column(columns[p], p), p + 1
         if lay.tool:
-            tool = self._column(fps, p)
+            tool = self._column(columns[p], p)
             if lay.tool == "point3":
                 point, tool = tool, np.zeros(np.shape(tool)[:-1] + (4, 4))
                 tool[..., :3, :3] = np.eye(3)
                 tool[..., :3, 3] = point
                 tool[..., 3, 3] = 1.0
             out.tool, p = tool, p + 1
-        out.offsets = [self._column(fps, p + j) for j in range(len(lay.offsets))]
-        p += len(lay.offsets)
-        out.placements = [self._column(fps, p + j) for j in range(len(lay.placements))]
-        p += len(lay.placements)
-        out.compliances = [self._column(fps, p + j) for j in range(len(lay.compliances))]
-        p += len(lay.compliances)
-        out.mass_compliances = [self._column(fps, p + j) for j in range(len(lay.mass_compliances))]
+        groups = []
+        for count in (len(lay.offsets), len(lay.placements), len(lay.compliances), len(lay.mass_compliances)):
+            groups.append([self._column(columns[p + j], p + j) for j in range(count)])
+            p += count
+        out.offsets, out.placements, out.compliances, out.mass_compliances = groups
         return out
 
-    def _compute(self, idx: list[int], fps: list[tuple]) -> None:
-        params = self._parameters(fps)
-        q = [self._column(fps, j, stacked=True) for j in range(self.joints)]
+    def _compute(self, idx, columns: list[list], jacobians: bool, fps: list[tuple] | None = None) -> None:
+        """Residuals (and Jacobians) of factors `idx` from their variables' raw readings `columns` (per variable,
+        per factor; a shared variable's once); `fps`: their fingerprints, kept to serve later calls."""
+        params = self._parameters(columns)
+        q = [self._column(columns[j], j, stacked=True) for j in range(self.joints)]
         if self.kind == "relative":
-            a = batch.marker_poses(self.chain, self.layout, q[0], params, True)
-            b = batch.marker_poses(self.chain, self.layout, q[1], params, True)
+            a = batch.marker_poses(self.chain, self.layout, q[0], params, jacobians)
+            b = batch.marker_poses(self.chain, self.layout, q[1], params, jacobians)
             e, blocks = batch.relative_residuals(a, b, self.measured[idx])
         else:
-            poses = batch.marker_poses(self.chain, self.layout, q[0], params, True)
+            poses = batch.marker_poses(self.chain, self.layout, q[0], params, jacobians)
             residuals = batch.pose_residuals if self.kind == "pose" else batch.position_residuals
             e, blocks = residuals(poses, self.measured[idx])
         self.e[idx] = e
-        for H, block in zip(self.H, blocks):
+        for H, block in zip(self.H, blocks or ()):
             H[idx] = block
-        for i, fp in zip(idx, fps):
+        for i, fp in zip(idx, fps or ()):
             self.fingerprints[i] = fp
