@@ -149,9 +149,10 @@ def speed(quick: bool) -> tuple[str, dict]:
     fk = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     with simulated_config("arm.sim", SPEED, seed=1) as config:
         _, scipy = arm.scipy_problem(config)
-        sp = scipy.solve()
+        solves = [scipy.solve() for _ in range(3)]  # the median of three: this machine's speed varies by half
+    sp = sorted(solves, key=lambda r: r.seconds)[1]
     rows = [[k, ms(v)] for k, v in fk.items()]
-    rows.append(["scipy least_squares (joints at readings; solve only)", ms(sp.seconds)])
+    rows.append(["scipy least_squares (joints at readings; solve only; median of 3)", ms(sp.seconds)])
     text = table(["panda_tracker, 1000 configurations x 7 joints, full calibration", "ms"], rows,
                  "Speed: 7-DoF full calibration end to end")
     text += (f"\ntotal / scipy solve: {ratio(fk['total'], sp.seconds)}; goal: total < 1 s. load: config validation; "
