@@ -15,6 +15,10 @@ With only one of B and M unknown (the description has no base or no tool), it is
 T_i (F_i M)^-1 or (B F_i)^-1 T_i: the translations' mean and the rotations' chordal mean. The result
 is a starting point for the solver, not an estimate: it weighs rotation and translation errors
 arbitrarily and ignores the other kinematic errors.
+
+`arm.point_markers` starts the base and point markers from positions only (every arm.tool_position entry of the
+robot, one marker per tool frame): z_i = B F_i m, the base B by Kabsch given the markers, each marker m by linear
+least squares given the base, alternately.
 """
 
 from __future__ import annotations
@@ -145,4 +149,92 @@ class HandEye(Initializer):
         return np.eye(4), mean_pose(np.linalg.inv(F) @ T)
 
 
-INITIALIZERS = [HandEye]
+def rigid_fit(P: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """The pose B (4x4) minimizing sum |B p_i - z_i|^2 for points P, Z (N, 3) (Kabsch, scipy's align_vectors)."""
+    from scipy.spatial.transform import Rotation
+    p0, z0 = P.mean(axis=0), Z.mean(axis=0)
+    R = Rotation.align_vectors(Z - z0, P - p0)[0].as_matrix()
+    B = np.eye(4)
+    B[:3, :3], B[:3, 3] = R, z0 - R @ p0
+    return B
+
+
+def base_and_points(F: list[np.ndarray], Z: list[np.ndarray], m: list[np.ndarray], rounds: int = 50
+                    ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(B, [m_e]) with z ~ B F m_e for each marker e's flange poses F[e] (N_e, 4, 4), measured points Z[e] (N_e, 3)
+    and start m[e] (3,): the base by Kabsch given the markers, each marker by linear least squares given the base,
+    alternately until they stop moving. Degenerate unless the points span a plane."""
+    m = [np.asarray(x, float).copy() for x in m]
+    P_all = np.concatenate(Z)
+    if len(P_all) < 3 or np.linalg.matrix_rank(P_all - P_all.mean(axis=0), tol=1e-6) < 2:
+        raise Degenerate(f"{len(P_all)} marker position(s)")
+    B = np.eye(4)
+    for _ in range(rounds):
+        points = np.concatenate([f[:, :3, :3] @ x + f[:, :3, 3] for f, x in zip(F, m)])
+        B = rigid_fit(points, P_all)
+        moved = 0.0
+        for e, (f, z) in enumerate(zip(F, Z)):
+            A = (B[:3, :3] @ f[:, :3, :3]).reshape(-1, 3)  # z_i = R_B (R_Fi m + t_Fi) + t_B
+            b = (z - f[:, :3, 3] @ B[:3, :3].T - B[:3, 3]).reshape(-1)
+            new = np.linalg.lstsq(A, b, rcond=None)[0]
+            moved, m[e] = max(moved, float(np.linalg.norm(new - m[e]))), new
+        if moved < 1e-9:
+            break
+    return B, m
+
+
+class PointMarkers(Initializer):
+    name = "arm.point_markers"
+    summary = ("initial base and point markers of a serial_arm from its arm.tool_position entries (one marker per tool "
+               "frame, several in one CSV): base by Kabsch, markers by least squares, alternately")
+    robot_fields = ("robot",)
+    schema = {"type": "object", "properties": {"robot": NAME}, "required": ["robot"], "additionalProperties": False}
+
+    def check(self, spec: Spec, scope) -> None:
+        """A serial_arm with a pose3 base (kinematics.base)."""
+        desc = scope.require_model(spec, "robot", "serial_arm")
+        base = (desc.extra.get("kinematics") or {}).get("base")
+        if not base or desc.parameters[base].vartype.name != "pose3":
+            raise spec.error("robot", f"robot {spec['robot']!r} has no pose3 base (kinematics.base): nothing for "
+                             "arm.point_markers to start")
+
+    def initialize(self, ctx, spec: Spec) -> None:
+        """Every arm.tool_position entry of the robot: its samples' flange positions at the joint states (current
+        offsets and placement errors) and its measured points; the entries' base must be the description's."""
+        robot = spec["robot"]
+        desc = ctx.robot(robot)
+        entries = [s for s in ctx.config.factors if s.type == "arm.tool_position" and s.get("robot") == robot]
+        if not entries:
+            raise spec.error("robot", f"robot {robot!r} has no arm.tool_position entry to start the base from")
+        F, Z, starts, markers = [], [], [], []
+        for entry in entries:
+            arm = entry_arm(desc, entry)
+            layout, variables = entry_layout(arm, entry, "point3")
+            flange = Layout(False, "", layout.offsets, layout.placements, layout.compliances, layout.payload,
+                            layout.mass_compliances, layout.lumped)
+            stream = ctx.stream(entry["stream"])
+            a = ctx.associate(stream, robot, entry)
+            ks = a.state.tolist()
+            known = variables[layout.base + bool(layout.tool):]
+            values = [HandEye._value(ctx, robot, name, index, ks) for name, index in known]
+            counts = np.cumsum([0, len(layout.offsets), len(layout.placements), len(layout.compliances)])
+            p = Parameters(offsets=values[:counts[1]], placements=values[counts[1]:counts[2]],
+                           compliances=values[counts[2]:counts[3]], mass_compliances=values[counts[3]:])
+            q = np.array([ctx.initial_value(key) for key in ctx.state_keys(robot, ks)], float).reshape(len(ks), -1)
+            F.append(marker_poses(arm.chain, flange, q, p).T)
+            Z.append(np.column_stack([stream.column(c) for c in entry["columns"]])[a.row])
+            tool = entry.get("tool", arm.tool)
+            markers.append(tool)
+            starts.append(np.asarray(ctx.initial_value(ctx.parameter(robot, tool)), float) if tool else np.zeros(3))
+        try:
+            B, found = base_and_points(F, Z, starts)
+        except Degenerate as exc:
+            raise spec.error("robot", f"the marker positions ({exc}) do not determine the base: they need three or "
+                             "more points not on one line") from None
+        ctx.set_initial(ctx.parameter(robot, (desc.extra.get("kinematics") or {})["base"]), gtsam.Pose3(B))
+        for tool, m in zip(markers, found):
+            if tool and desc.parameters[tool].vartype.name == "point3":
+                ctx.set_initial(ctx.parameter(robot, tool), m)
+
+
+INITIALIZERS = [HandEye, PointMarkers]

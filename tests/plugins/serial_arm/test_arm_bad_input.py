@@ -116,6 +116,11 @@ CASES.update({
     "two hands, marker of an unknown frame": (
         upper_body(lambda _, d: d["kinematics"].update(tool={"l_hand": "marker_left", "head": "marker_right"})),
         "kinematics.tool.head: 'head' is not one of the tool frames (tool_frame: l_hand, r_hand)"),
+    "point markers without a base": (
+        upper_body(lambda c, d: (d["kinematics"].pop("base"),
+                                 c.update(initializers=[{"type": "arm.point_markers", "robot": "arm"}]))),
+        "initializers[0].robot: robot 'arm' has no pose3 base (kinematics.base): nothing for arm.point_markers to "
+        "start"),
     "a listed joint moving no tool frame": (
         upper_body(lambda _, d: d.update(tool_frame=["l_hand"])),
         "joints: upper_body.urdf: joint 'r_shoulder_pitch' does not move tool_frame 'l_hand'"),
