@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import hookimpl
 from ..components import SourceOutput, Source, Spec
-from .files import read_csv_header, read_csv_stream, read_tum
+from .files import csv_has_time_column, read_csv_header, read_csv_stream, read_tum
 from .recordings import concatenated
 from .stream import POSE_COLUMNS
 
@@ -60,11 +60,11 @@ class CsvSource(Source):
         indexed = spec.get("time") == "row"
         parts = [read_csv_stream(f, spec["name"], tuple(spec.get("columns", ())), indexed) for f in files]
         if indexed:
-            numbered = 0
-            for part in parts:  # a numbered file's rows continue the previous files' numbering
-                if numbered and np.array_equal(part.t, np.arange(len(part.t))):
-                    part.t = part.t + numbered
-                numbered = int(part.t[-1]) + 1
+            after = None  # the last sample number so far
+            for f, part in zip(files, parts):  # a numbered file's rows continue the previous files' numbering
+                if not csv_has_time_column(f) and after is not None:
+                    part.t = part.t + np.floor(after) + 1
+                after = part.t[-1] if len(part.t) else after
         stream = concatenated(parts, files)
         return SourceOutput({stream.name: stream})
 

@@ -93,6 +93,15 @@ def _check_header(path: Path, line: int, header: list[str]) -> None:
                         f"expected distinct names, header was {','.join(header)}")
 
 
+def csv_has_time_column(path: Path) -> bool:
+    """Whether the CSV's header row starts with `t` (else read_csv_stream(indexed=True) numbers its rows)."""
+    with path.open(encoding="utf-8-sig", newline="") as f:
+        for row in csv.reader(f):
+            if _is_data(row):
+                return row[0].strip() == "t"
+    return False
+
+
 def read_csv_header(path: Path, indexed: bool = False) -> tuple[str, ...]:
     """The column names after `t`, reading no further than the header row (to validate before reading data);
     `indexed`: a table that may leave `t` out (read_csv_stream)."""

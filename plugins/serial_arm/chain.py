@@ -187,10 +187,11 @@ class SerialChain:
         return self._tools[frame]
 
     def gravity_torques(self, q: np.ndarray, payload: tuple = (), jacobians: bool = False):
-        """The gravity torque on each listed joint (N, n; N m, or N for a prismatic joint) at joint values q (N, n)
-        from the URDF's inertials (`gravity`: -9.81 m/s^2 along the URDF root's z unless set) plus `payload` (frame,
+        """The torque gravity exerts on each listed joint (N, n; N m, or N for a prismatic joint; the opposite of
+        Pinocchio's generalized gravity, which holds the arm up) at joint values q (N, n) from the URDF's inertials (`gravity`: -9.81 m/s^2 along the URDF root's z unless set) plus `payload` (frame,
         mass kg, x, y, z m in that frame), a coupled joint's torque carried to its leaders (virtual work:
-        tau = V^T g); with `jacobians` also d tau / d q (N, n, n), else None."""
+        tau = -V^T g); with `jacobians` also d tau / d q (N, n, n), else None: a positive compliance lets the joint
+        give way to gravity."""
         key = ("urdf", self.model.getFrameId(payload[0]), *payload[1:]) if payload else ("urdf",)
         return self._torques(self._gravity_model(key), q, jacobians)
 
@@ -210,16 +211,17 @@ class SerialChain:
         V = self.dv_dq
         for i, qi in enumerate(q):
             config = self._configuration(qi)
-            tau[i] = V.T @ pin.computeGeneralizedGravity(model, data, config)
+            tau[i] = -V.T @ pin.computeGeneralizedGravity(model, data, config)  # Pinocchio's: the torque holding up
             if jacobians:
-                dtau[i] = V.T @ pin.computeGeneralizedGravityDerivatives(model, data, config) @ V
+                dtau[i] = -V.T @ pin.computeGeneralizedGravityDerivatives(model, data, config) @ V
         return tau, dtau
 
     def _gravity_model(self, key: tuple) -> tuple:
         """The model gravity torques are computed on, with the URDF's nominal placements (placement errors change
         torques by their own small fraction). key ("urdf",): the URDF's inertials; ("urdf", frame id, mass, x, y,
-        z): plus a payload there; ("unit", frame id, 1, x, y, z): only 1 kg there."""
-        if key not in self._gravity:
+        z): plus a payload there; ("unit", frame id, 1, x, y, z): only 1 kg there. Cached per key and gravity."""
+        cached = key + tuple(self.gravity)
+        if cached not in self._gravity:
             model = pin.Model(self.model)
             model.gravity = pin.Motion(self.gravity, np.zeros(3))
             for j, jid in enumerate(self.jids):
@@ -231,8 +233,8 @@ class SerialChain:
                 frame = model.frames[key[1]]
                 at = frame.placement.act(np.asarray(key[3:6], float))
                 model.inertias[frame.parentJoint] += pin.Inertia(float(key[2]), at, np.zeros((3, 3)))
-            self._gravity[key] = (model, model.createData())
-        return self._gravity[key]
+            self._gravity[cached] = (model, model.createData())
+        return self._gravity[cached]
 
     def unit_twist(self, jid: int) -> np.ndarray:
         """The motion axis of joint `jid` (reduced model) as a unit twist in GTSAM order (rotation, translation)."""

@@ -29,10 +29,12 @@ FORMAT = "fusionkit serial_arm compliances 1"
 
 def compliance_document(chain: SerialChain, compliances: dict[str, float], mass_compliances: dict[str, list],
                         lumped: tuple, gravity: np.ndarray, urdf: str, frames: list[str], couplings: list[Coupling],
-                        payload: tuple, note: str) -> str:
-    """The YAML text of `robots/<robot>.compliance.yaml` (module docstring)."""
+                        locked: dict, payload: tuple, note: str) -> str:
+    """The YAML text of `robots/<robot>.compliance.yaml` (module docstring); `frames`: the marker links."""
     doc = {"format": FORMAT, "urdf": urdf, "note": note, "joints": list(chain.joint_names),
+           "tool_frames": list(chain.tool_frames),
            "couplings": [{"joint": c.joint, "of": dict(c.leaders), "offset": c.offset} for c in couplings],
+           "locked": {name: float(v) for name, v in locked.items()},
            "compliance": {name: float(v) for name, v in compliances.items()},
            "mass_compliance": {name: [float(x) for x in v] for name, v in mass_compliances.items()},
            "lumped_masses": [{"link": m[0], "center": [float(x) for x in m[1:4]]} for m in lumped],
@@ -44,8 +46,8 @@ def compliance_document(chain: SerialChain, compliances: dict[str, float], mass_
 def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, payload: dict | None = None) -> np.ndarray:
     """The pose (4x4) of `frame` (default: the document's first marker frame) in the exported URDF's root (the
     measurement frame) at encoder readings q (n,) or (N, n), with its joints deflected under gravity and
-    `payload` ({mass: kg, center: [x, y, z] m, frame: name}, default the one the calibration used); (N, 4, 4) for
-    several configurations."""
+    `payload` ({mass: kg, center: [x, y, z] m, frame: name, default the robot's first tool frame}; default the one
+    the calibration used); (N, 4, 4) for several configurations."""
     path = Path(compliance_file)
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
@@ -53,11 +55,12 @@ def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, pay
     couplings = tuple(Coupling(c["joint"], tuple((k, float(v)) for k, v in c["of"].items()), float(c["offset"]))
                       for c in doc["couplings"])
     urdf = path.parent / doc["urdf"]
-    chain = SerialChain.from_urdf(urdf, _root(urdf), tuple(doc["frames"]), doc["joints"], couplings)
+    chain = SerialChain.from_urdf(urdf, _root(urdf), tuple(doc["frames"]), doc["joints"], couplings,
+                                  tuple(doc["locked"].items()))
     chain = chain.for_tool(frame or doc["frames"][0])
     chain.gravity = np.asarray(doc["gravity"], float)
     load = payload if payload is not None else doc.get("payload")
-    carried = (load.get("frame", chain.tool_frame), float(load["mass"]), *map(float, load.get("center", (0, 0, 0)))) \
+    carried = (load.get("frame", doc["tool_frames"][0]), float(load["mass"]), *map(float, load.get("center", (0, 0, 0)))) \
         if load else ()
     layout = Layout(compliances=tuple(doc["joints"].index(name) for name in doc["compliance"]), payload=carried,
                     mass_compliances=tuple(doc["joints"].index(name) for name in doc["mass_compliance"]),

@@ -174,5 +174,7 @@ class EntryEvaluator:
         self.e[idx] = e
         for H, block in zip(self.H, blocks or ()):
             H[idx] = block
+        if fps is not None:  # a call outside the pass (another Values) overwrote rows the pass served
+            self.token = None
         for i, fp in zip(idx, fps or ()):
             self.fingerprints[i] = fp

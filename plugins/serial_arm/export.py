@@ -103,18 +103,21 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
     root = next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
     taken = links | set(joints)
     meas = _free(MEASUREMENT_FRAME, taken)
+    taken.add(meas)
+    meas_joint = _free(f"{meas}_joint", taken)
+    taken.add(meas_joint)
     indent = robot.text if robot.text and not robot.text.strip() else "\n  "
     added = [ET.Element("link", name=meas),
-             _fixed_joint(_free(f"{meas}_joint", taken), meas, root, base @ chain.base_T_universe, indent)]
+             _fixed_joint(meas_joint, meas, root, base @ chain.base_T_universe, indent)]
     said = [f"link {meas} (the measurement frame, parent of {root})"]
     names = []
     for frame, M in markers.items():
         tool_link = frame if frame in links else joints[frame].find("child").get("link")  # a joint's frame: its child's
         marker = _free(MARKER if len(markers) == 1 else f"{MARKER}_{frame}", taken)
         taken.add(marker)
-        added += [ET.Element("link", name=marker), _fixed_joint(_free(f"{marker}_joint", taken), tool_link, marker, M,
-                                                                indent)]
-        taken.add(f"{marker}_joint")
+        joint = _free(f"{marker}_joint", taken)
+        taken.add(joint)
+        added += [ET.Element("link", name=marker), _fixed_joint(joint, tool_link, marker, M, indent)]
         said.append(f"link {marker} (on {tool_link})")
         names.append(marker)
     note += f" Added: {' and '.join(said)}."
@@ -172,7 +175,7 @@ def urdf_output(robot: str, calibrated: RobotDescription) -> dict[str, str]:
         gravity = (base @ chain.base_T_universe)[:3, :3] @ chain.gravity  # the URDF root's gravity, seen from the
         out[f"robots/{robot}.compliance.yaml"] = compliance_document(  # measurement frame (the exported root)
             chain, *compliances, arm_of(calibrated).lumped, gravity, f"{robot}.urdf", marker_links,
-            couplings_of(calibrated.extra), arm_of(calibrated).payload,
+            couplings_of(calibrated.extra), calibrated.extra.get("locked", {}), arm_of(calibrated).payload,
             f"robot {robot!r} ({calibrated.name}): joint compliances beside {robot}.urdf; deflected pose = "
             "FK(q + compliance x gravity torque(q)) (fusionkit_plugins.serial_arm.elastic.deflected_pose)")
     return out

@@ -298,7 +298,10 @@ class SerialArmModel(RobotModel):
         for i, group in enumerate(kin.get("compliances", ())):
             for name in group["joints"]:
                 jid = chain.model.getJointId(name)
-                if not load and sum(chain.model.inertias[j].mass for j in chain.model.subtrees[jid]) <= 0:
+                beyond = set(chain.model.subtrees[jid])
+                carried = load and chain.model.frames[chain.model.getFrameId(load.get("frame", tool_frames(
+                    desc.extra)[0]))].parentJoint in beyond and load["mass"] > 0
+                if not carried and sum(chain.model.inertias[j].mass for j in beyond) <= 0:
                     raise desc.error(("kinematics", "compliances", i, "joints"), f"joint {name!r} carries no mass in "
                                      "the URDF (no <inertial> beyond it): its gravity torque is 0, a compliance would "
                                      "move nothing; give the links their inertials or a payload")

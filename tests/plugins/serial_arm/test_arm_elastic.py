@@ -23,13 +23,13 @@ TRACKER, ENCODER = 1e-4, 1e-5
 def potential_energy(chain: SerialChain, payload: tuple, q: np.ndarray) -> float:
     import pinocchio as pin
     model, data = chain._gravity_model(("urdf", chain.model.getFrameId(payload[0]), *payload[1:]) if payload
-                                       else ("urdf",))
+                                       else ("urdf",))  # the model the torques are computed on
     return float(pin.computePotentialEnergy(model, data, chain._configuration(q)))
 
 
 @pytest.mark.parametrize("payload", [(), ("tool", 2.5, 0.0, 0.03, 0.02)])
-def test_gravity_torques_are_the_potential_energys_gradient_through_the_coupling(tmp_path, payload):
-    """tau = dU/dq (central differences of Pinocchio's potential energy, coupled joint at -(q_a + q_b)) to 1e-6 N m,
+def test_gravity_torques_are_minus_the_potential_energys_gradient_through_the_coupling(tmp_path, payload):
+    """tau = -dU/dq (central differences of Pinocchio's potential energy, coupled joint at -(q_a + q_b)) to 1e-6 N m,
     and d tau / d q = central differences of tau to 1e-5."""
     chain = SerialChain.from_urdf(torso_urdf(tmp_path), "base", "tool", ["a", "b", "d"],
                                   (Coupling("c", (("a", -1.0), ("b", -1.0))),))
@@ -39,7 +39,7 @@ def test_gravity_torques_are_the_potential_energys_gradient_through_the_coupling
     for i in range(3):
         step = np.eye(3)[i] * h
         dU = (potential_energy(chain, payload, q + step) - potential_energy(chain, payload, q - step)) / (2 * h)
-        assert tau[0, i] == pytest.approx(dU, abs=1e-6)
+        assert tau[0, i] == pytest.approx(-dU, abs=1e-6)  # the torque gravity exerts: minus the energy's gradient
         numeric = (chain.gravity_torques((q + step)[None], payload)[0] - chain.gravity_torques((q - step)[None],
                                                                                                 payload)[0]) / (2 * h)
         assert dtau[0, :, i] == pytest.approx(numeric[0], abs=1e-5)
@@ -208,3 +208,21 @@ def test_products_of_compliance_and_lumped_masses_are_calibrated_and_reported_as
         (tmp_path / name.split("/")[-1]).write_text(text)
     exported = deflected_pose(tmp_path / "arm.compliance.yaml", q)[:, :3, 3]
     assert np.abs(exported - predicted).max() < 1e-5  # the export's torques at calibrated link placements
+
+
+def test_a_positive_compliance_lets_the_outstretched_arm_sag():
+    """The UR10 stretched out horizontally (shoulder lift -pi/2 in its URDF convention is up; 0 is horizontal): a
+    positive shoulder-lift compliance lowers the flange, by compliance x torque x reach (measured 1.4 mm for
+    1e-5 rad/(N m))."""
+    from pathlib import Path
+    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.factors import UR_JOINTS
+    from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
+    from fusionkit_plugins.serial_arm.model import chain_from
+    from fusionkit_plugins.serial_arm.urdf import PREFIX, urdf_path
+    chain = chain_from(urdf_path(PREFIX + "ur10", Path(".")), "base_link", "tool0", UR_JOINTS)
+    q = np.zeros((1, 6))
+    rigid = marker_poses(chain, Layout(), q, Parameters()).T[0, :3, 3]
+    sagging = marker_poses(chain, Layout(compliances=(1,)), q, Parameters(compliances=np.array([1e-5]))).T[0, :3, 3]
+    assert abs(rigid[2] - 0.0) < 0.2 and np.linalg.norm(rigid[:2]) > 1.0  # outstretched
+    assert -2e-3 < sagging[2] - rigid[2] < -5e-4
