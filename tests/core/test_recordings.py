@@ -78,3 +78,20 @@ def test_recordings_that_overlap_or_differ_in_columns_are_one_line_errors(two_re
     assert main(["validate", str(two_recordings), "--set", f"sources.0.path=[wheels0.csv, {name}]"]) == 2
     err = capsys.readouterr().err.strip()
     assert says in err and len(err.splitlines()) == 1
+
+
+def test_untimed_files_of_a_csv_source_with_time_row_are_numbered_on_across_files(tmp_path):
+    """`time: row`: rows of files without a `t` column are numbered 0, 1, ... and the next file's continue after
+    the previous file's last sample; a file with its own `t` keeps it."""
+    from fusionkit.components import Spec
+    from fusionkit.data.builtin_sources import CsvSource
+    (tmp_path / "a.csv").write_text("x\n1\n2\n3\n")
+    (tmp_path / "b.csv").write_text("x\n4\n5\n")
+    (tmp_path / "c.csv").write_text("t,x\n7.5,6\n8.0,7\n")
+    (tmp_path / "d.csv").write_text("x\n8\n")
+    from fusionkit.config.yamlio import Document
+    spec = Spec({"name": "s", "path": ["a.csv", "b.csv", "c.csv", "d.csv"], "time": "row"},
+                Document({}, tmp_path / "config.yaml"), ("sources", 0))
+    stream = CsvSource().read(spec, tmp_path).streams["s"]
+    assert stream.t.tolist() == [0, 1, 2, 3, 4, 7.5, 8.0, 9]
+    assert stream.column("x").tolist() == [1, 2, 3, 4, 5, 6, 7, 8]
