@@ -28,6 +28,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.sweep",
     "fusionkit.crossval.command",
 )
+API_ATTRIBUTE = "FUSIONKIT_API"  # the API version an entry-point module was written for (absent: "1.0")
 OWN_DISTRIBUTION = "fusionkit"  # its entry-point plugins load first: a third-party name clash loses
 
 KINDS = {
@@ -90,6 +91,23 @@ def _entry_points() -> list[tuple[str, importlib.metadata.EntryPoint]]:
     return sorted(out, key=lambda d_ep: (d_ep[0] != OWN_DISTRIBUTION, d_ep[0], d_ep[1].name))
 
 
+def api_mismatch(declared) -> str | None:
+    """Why a plugin written for fusionkit API `declared` ("major.minor", its module's FUSIONKIT_API) cannot load
+    into this fusionkit, or None: it needs the same major version and at most this minor one."""
+    from .api import API_VERSION
+    have = tuple(int(x) for x in API_VERSION.split("."))
+    try:
+        need = tuple(int(x) for x in str(declared).split("."))
+        assert len(need) == 2
+    except (ValueError, AssertionError):
+        return f"{API_ATTRIBUTE} = {declared!r} is not a version 'major.minor' (this fusionkit provides {API_VERSION})"
+    if need[0] != have[0] or need[1] > have[1]:
+        return (f"written for fusionkit API {declared}; this fusionkit provides API {API_VERSION} (a plugin needs the "
+                "same major version and at most the same minor one): use a fusionkit release with that API, or a "
+                "release of the plugin written for this one")
+    return None
+
+
 def _plugin_manager(broken: list[str] | None = None) -> pluggy.PluginManager:
     """Built-ins, then each entry-point plugin; one that fails to import or declares a hook that
     does not exist is left out and described in `broken` (a typo must not pass silently, and one
@@ -108,6 +126,10 @@ def _plugin_manager(broken: list[str] | None = None) -> pluggy.PluginManager:
             plugin = ep.load()
         except Exception as exc:
             broken.append(f"{where}: {exc.__class__.__name__}: {exc}")
+            continue
+        incompatible = api_mismatch(getattr(plugin, API_ATTRIBUTE, "1.0"))
+        if incompatible:
+            broken.append(f"{where}: {incompatible}")
             continue
         pm.register(plugin, name=ep.name)
         try:

@@ -40,12 +40,6 @@ def with_defaults(schema: dict, instance: Any) -> Any:
     return out
 
 
-def schema_defaults(schema: dict) -> dict:
-    """{key: default} of the top-level properties that have one."""
-    return {key: sub["default"] for key, sub in schema.get("properties", {}).items()
-            if isinstance(sub, dict) and "default" in sub}
-
-
 def with_default_keywords(schema: dict, defaults: dict) -> dict:
     """A copy of `schema` whose properties carry `default: defaults[key]` (shared subschemas untouched)."""
     props = {key: {**sub, "default": defaults[key]} if key in defaults else sub

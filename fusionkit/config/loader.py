@@ -18,7 +18,6 @@ from .schema import CONFIG_SCHEMA, NOISE_SCALE_SCHEMA, ROBUST_SCHEMA, SOLVER_TYP
 from .yamlio import Document, load_yaml
 from ..time_offset.config import KEY as TIME_OFFSET, SCHEMA as TIME_OFFSET_SCHEMA, check_time_offset
 
-COMMON_ENTRY_KEYS = {"type", "label"}
 FACTOR_KEYS = {"robust": ROBUST_SCHEMA, "noise_scale": NOISE_SCALE_SCHEMA,  # every factor entry's, besides its type's
                TIME_OFFSET: TIME_OFFSET_SCHEMA}
 

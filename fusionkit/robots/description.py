@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 
 from ..config.schema import validate_against
-from ..config.yamlio import Document, load_yaml, parse_yaml
+from ..config.yamlio import Document, load_yaml
 from ..graph.variables import POSE3, VARTYPE_NAMES, VarType, vartype_named
 from .registered import is_description_name, registered_document
 
@@ -218,7 +218,3 @@ def load_description(source: str | Path | dict, base: Path, where: Document, pat
     if not file.exists():
         raise where.error(path, f"robot description file not found: {file}")
     return description_from_document(load_yaml(file))
-
-
-def description_from_text(text: str, name: str = "<string>") -> RobotDescription:
-    return description_from_document(parse_yaml(text, name))

@@ -9,6 +9,8 @@ from .initializers import INITIALIZERS
 from .model import CdprModel
 from .simulator import SIMULATORS
 
+FUSIONKIT_API = "1.11"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+
 
 @hookimpl
 def register_factor_types():

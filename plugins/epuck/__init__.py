@@ -11,6 +11,8 @@ from .initializer import INITIALIZERS
 from .model import EpuckModel, WallMapModel
 from .simulator import SIMULATORS
 
+FUSIONKIT_API = "1.11"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+
 
 @hookimpl
 def register_factor_types():

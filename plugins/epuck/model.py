@@ -38,8 +38,6 @@ from .walls import segments_of
 IR_TYPE = "ir_proximity"
 POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 POINT = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
-TERM = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
-TERMS = {"type": "array", "items": TERM, "minItems": 1}
 
 
 @dataclass

@@ -7,6 +7,8 @@ from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
 
+FUSIONKIT_API = "1.11"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+
 
 @hookimpl
 def register_factor_types():

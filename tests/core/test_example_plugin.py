@@ -259,3 +259,48 @@ def test_only_marked_functions_are_hooks(tmp_path):
     proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["probe"] == {}
+
+
+@pytest.mark.parametrize("declared, accepted", [("1.99", False), ("2.0", False), ("one", False), ("1.0", True)])
+def test_a_plugin_written_for_another_api_version_is_refused_in_one_line(tmp_path, declared, accepted):
+    """FUSIONKIT_API in the entry-point module: a future minor version or another major one is refused with one line
+    naming the plugin and both versions, and its types are unavailable; an older minor version of the same major
+    loads."""
+    from fusionkit.api import API_VERSION
+    fake = _fake_distribution(tmp_path, f"""
+        from fusionkit.api import hookimpl, Simulator
+
+        FUSIONKIT_API = "{declared}"
+
+        class Probe(Simulator):
+            name = "probe.sim"
+            summary = "nothing"
+
+        @hookimpl
+        def register_simulators():
+            return [Probe]
+    """)
+    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    assert proc.returncode == 0, proc.stderr
+    listed = json.loads(proc.stdout)
+    if accepted:
+        assert proc.stderr == "" and "probe.sim" in json.dumps(listed["probe"])
+        return
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith(WARNING.split("{reason}")[0]) and "probe" not in listed
+    if declared == "one":
+        assert f"FUSIONKIT_API = 'one' is not a version 'major.minor' (this fusionkit provides {API_VERSION})" in line
+    else:
+        assert f"written for fusionkit API {declared}; this fusionkit provides API {API_VERSION}" in line
+
+
+def test_every_plugin_family_declares_the_api_it_is_written_for():
+    """The built-in families declare the current API (they are written exactly as a third-party package)."""
+    import importlib
+    from fusionkit.api import API_VERSION
+    from fusionkit.plugins import _entry_points, api_mismatch
+    own = [ep for dist, ep in _entry_points() if dist == "fusionkit"]
+    assert len(own) == 8
+    for ep in own:
+        declared = importlib.import_module(ep.value).FUSIONKIT_API
+        assert declared == API_VERSION and api_mismatch(declared) is None

@@ -8,6 +8,8 @@ Implement only the hooks you need (see `fusionkit.hookspecs`); each returns clas
 
 from fusionkit.api import hookimpl
 
+FUSIONKIT_API = "1.1"  # the plugin API this package is written for: fusionkit refuses to load it into an older one
+
 from .factors import FACTOR_TYPES
 from .simulator import SIMULATORS
 
