@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import fusionkit
+import fusionkit.api
 from fusionkit.pipeline import estimate
 from fusionkit.report.outputs import write_outputs
 
@@ -66,7 +67,7 @@ def run(quick: bool = False) -> dict:
         write = overrides == []
         try:
             runs = [_once(overrides, write) for _ in range(repeats)]
-        except fusionkit.FusionkitError as exc:
+        except fusionkit.api.FusionkitError as exc:
             rows.append([name, "FAILED"] + [""] * 9)
             failures.append(f"{name}: FAILED with {exc.__class__.__name__}: {exc}")
             continue

@@ -9,7 +9,8 @@ version adds names, a major one changes or removes them. docs/plugin_guide.md do
 
 from __future__ import annotations
 
-from . import hookimpl, lie, se2
+from . import lie, se2
+from .hookspecs import hookimpl
 from .components import (CheckScope, Command, FactorType, Initializer, ResidualPart, RobotModel, Simulator, Source,
                          SourceOutput, Spec, pose_parts)
 from .data.files import read_csv_stream

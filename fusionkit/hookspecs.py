@@ -1,6 +1,6 @@
 """Every hook a fusionkit plugin can implement. All are registration hooks, called once.
 
-A plugin is a module (or object) with functions decorated by `fusionkit.hookimpl`; third-party
+A plugin is a module (or object) with functions decorated by `fusionkit.api.hookimpl`; third-party
 packages expose it through the `fusionkit` entry-point group in their pyproject.toml:
 
     [project.entry-points.fusionkit]
@@ -12,31 +12,32 @@ from __future__ import annotations
 import pluggy
 
 hookspec = pluggy.HookspecMarker("fusionkit")
+hookimpl = pluggy.HookimplMarker("fusionkit")  # public as fusionkit.api.hookimpl
 
 
 @hookspec
 def register_factor_types() -> list[type]:
-    """Return `fusionkit.FactorType` subclasses (sensor models and constraints)."""
+    """Return `fusionkit.api.FactorType` subclasses (sensor models and constraints)."""
 
 
 @hookspec
 def register_sources() -> list[type]:
-    """Return `fusionkit.Source` subclasses (file formats, bag readers, in-process generators)."""
+    """Return `fusionkit.api.Source` subclasses (file formats, bag readers, in-process generators)."""
 
 
 @hookspec
 def register_robot_models() -> list[type]:
-    """Return `fusionkit.RobotModel` subclasses (robot types described in YAML)."""
+    """Return `fusionkit.api.RobotModel` subclasses (robot types described in YAML)."""
 
 
 @hookspec
 def register_initializers() -> list[type]:
-    """Return `fusionkit.Initializer` subclasses (initial values for the solver)."""
+    """Return `fusionkit.api.Initializer` subclasses (initial values for the solver)."""
 
 
 @hookspec
 def register_simulators() -> list[type]:
-    """Return `fusionkit.Simulator` subclasses (synthetic datasets with truth)."""
+    """Return `fusionkit.api.Simulator` subclasses (synthetic datasets with truth)."""
 
 
 @hookspec

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from . import hookimpl
+from .hookspecs import hookimpl
 from .components import Command
 from .config.yamlio import load_yaml
 from .config.schema import validate_against

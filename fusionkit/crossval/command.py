@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import hookimpl
+from ..hookspecs import hookimpl
 from ..components import Command
 from ..errors import ConfigError
 from ..parallel import BACKENDS

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import hookimpl
+from ..hookspecs import hookimpl
 from ..components import SourceOutput, Source, Spec
 from .files import csv_has_time_column, read_csv_header, read_csv_stream, read_tum
 from .recordings import concatenated

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import hookimpl
+from ..hookspecs import hookimpl
 from ..components import Source, SourceOutput, Spec
 from .builtin_sources import NAME, resolve
 from .files import read_csv_header, read_csv_stream, read_tum

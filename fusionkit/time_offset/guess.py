@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import hookimpl
+from ..hookspecs import hookimpl
 from ..components import Initializer, Spec
 from ..data.stream import POSE_COLUMNS, Stream
 

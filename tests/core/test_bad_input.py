@@ -675,7 +675,7 @@ def test_pose_sigma_needs_both_keys_above_zero(tmp_path, capsys, value, needle):
 
 
 def test_every_pose_sigma_of_every_factor_type_is_the_one_schema_with_at_most_a_default():
-    from fusionkit import POSE_SIGMA_SCHEMA
+    from fusionkit.api import POSE_SIGMA_SCHEMA
     from fusionkit.plugins import registry
     reg = registry()
     for name in reg.names("factor_types"):

@@ -10,7 +10,7 @@ import gtsam
 import numpy as np
 import pytest
 
-from fusionkit import FactorType
+from fusionkit.api import FactorType
 from fusionkit.plugins import registry
 from fusionkit.testing import (ContractFailure, FactorExample, check_factor_contract, check_factor_example,
                                numerical_jacobians)

@@ -218,7 +218,7 @@ def test_misspelled_hook_is_named_and_the_plugin_left_out(tmp_path):
     """A @hookimpl whose name is no hook (here `register_factor_type`) is named with its distribution
     and entry point on every command, and the plugin is left out; the rest works."""
     fake = _fake_distribution(tmp_path, """
-        from fusionkit import hookimpl
+        from fusionkit.api import hookimpl
 
         @hookimpl
         def register_factor_type():

@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 import fusionkit
+import fusionkit.api
 from fusionkit.api import robot_description_data
 from fusionkit.cli.main import main
 from fusionkit.errors import ConfigError
@@ -29,7 +30,7 @@ class DescriptionPlugin:
     def __init__(self, files: dict):
         self.files = files
 
-    @fusionkit.hookimpl
+    @fusionkit.api.hookimpl
     def register_robot_descriptions(self):
         return self.files
 

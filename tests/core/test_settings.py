@@ -22,6 +22,7 @@ import pytest
 import yaml
 
 import fusionkit
+import fusionkit.api
 from fusionkit.api import TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian
 from fusionkit.cli.main import main
 from fusionkit.config.defaults import key_rows, merged, with_defaults
@@ -241,7 +242,7 @@ class UndeclaredTolerance(FactorType):
 
 
 class UndeclaredPlugin:
-    @fusionkit.hookimpl
+    @fusionkit.api.hookimpl
     def register_factor_types(self):
         return [UndeclaredTolerance]
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fusionkit import Simulator, SourceOutput
+from fusionkit.api import Simulator, SourceOutput
 from fusionkit.cli.main import main
 from fusionkit.data.stream import Stream
 from fusionkit.plugins import registry

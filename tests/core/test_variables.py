@@ -12,7 +12,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import fusionkit
-from fusionkit import CheckScope, FactorType, Spec
+import fusionkit.api
+from fusionkit.api import CheckScope, FactorType, Spec
 from fusionkit.config.yamlio import Document
 from fusionkit.graph.builder import STATIC_TIME, BuildContext
 from fusionkit.graph.keys import INDEX_BITS, STATE, STATIC, TIME_VARYING, KeyRegistry
@@ -132,7 +133,7 @@ def test_factor_checks_ask_for_a_family_by_its_name(workspace):
         scope.require_parameter(spec, "robot", "parameter", name)
         assert desc.parameters[name].vartype.name == name
     spec = Spec({"type": "test", "robot": "rig", "parameter": "velocity3"}, desc.doc, ("factors", 0))
-    with pytest.raises(fusionkit.ConfigError, match="parameter 'velocity3' is a velocity3; expected a vector3"):
+    with pytest.raises(fusionkit.api.ConfigError, match="parameter 'velocity3' is a velocity3; expected a vector3"):
         scope.require_parameter(spec, "robot", "parameter", "vector3")
 
 
@@ -358,7 +359,7 @@ class DirectMeasurement(FactorType):
 
 
 class DirectPlugin:
-    @fusionkit.hookimpl
+    @fusionkit.api.hookimpl
     def register_factor_types(self):
         return [DirectMeasurement]
 

@@ -8,7 +8,7 @@ import gtsam
 import numpy as np
 import pytest
 
-from fusionkit import gaussian
+from fusionkit.api import gaussian
 from fusionkit.geometry import fit_range_origin, range_factor
 from fusionkit.testing import FactorExample, check_factor_example
 from fusionkit_plugins.uwb.factors import scaled_range_factor

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusionkit import ConfigError, load_config
+from fusionkit import load_config
+from fusionkit.api import ConfigError
 from fusionkit.pipeline import estimate, read_sources
 from fusionkit.simulate import simulated_config
 from fusionkit_plugins.wheels import rules
