@@ -20,6 +20,7 @@ from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_f
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
 from .geometry import body_point_range, fit_range_origin, range_factor
 from .graph.noise import POSE_SIGMA_SCHEMA, gaussian, pose_sigma_schema, pose_sigmas
+from .graph.context import BuildContext
 from .graph.passes import pass_token
 from .graph.vectorized import VectorizedResidual, instance_factor as vectorized_factor
 from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
@@ -36,7 +37,7 @@ from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.11"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -57,6 +58,8 @@ API_VERSION = "1.11"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      ctx.add_diagnostic(..., identifiability=True): a family's analysis joins the identifiability report
 # 1.11: pass_token(values): fusionkit's evaluator is costing or linearizing this very Values object (factors
 #      with many variables that share one evaluation read them once per pass)
+# 1.12: BuildContext, the protocol of the `ctx` a plugin receives (ctx.family, robot_of, initial_values, entries,
+#      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -88,6 +91,8 @@ __all__ = [
     "VectorizedResidual", "vectorized_factor", "lie", "se2",
     # CustomFactors sharing one evaluation: the pass of fusionkit's evaluator they are called in
     "pass_token",
+    # what the `ctx` of build / diagnose / initialize offers
+    "BuildContext",
     # what a robot model draws of itself (RobotModel.geometry)
     "Points", "Lines",
     # FactorType.separation_hint: which elements of a parameter a group names

@@ -193,6 +193,37 @@ class BuildContext:
         """Whether a factor (or initializer) declared variable `key`."""
         return key in self.key_time
 
+    def initial_values(self) -> gtsam.Values:
+        """A copy of the initial values of every declared variable (for a plugin's own local solve or error; set
+        values with set_initial)."""
+        return gtsam.Values(self.initial)
+
+    def family(self, robot: str, name: str):
+        """The variable family `name` of robot `robot` that a factor declared (its `key(k)`), or None."""
+        return self.keys.get(robot, name)
+
+    def robot_of(self, key: int) -> str:
+        """The robot a declared variable belongs to."""
+        return self.keys.decode(key)[0].robot
+
+    def entries(self, type_name: str | None = None, robot: str | None = None) -> list[Spec]:
+        """The config's factor entries (of type `type_name` and of robot `robot`, when given), in config order: what
+        an entry may need to see of others (a diagnostic over all of a robot's marker entries, whether some entry
+        estimates a scale for the robot)."""
+        return [s for s in self.config.factors
+                if (type_name is None or s.type == type_name) and (robot is None or s.get("robot") == robot)]
+
+    def factors(self, label: str | None = None, robots: tuple[str, ...] | None = None) -> list:
+        """The factors added so far: an entry's (`label`), or those whose variables all belong to `robots`."""
+        return [r.factor for r in self.records
+                if (label is None or r.label == label)
+                and (robots is None or all(self.robot_of(k) in robots for k in r.factor.keys()))]
+
+    def note(self, text: str) -> None:
+        """A sentence for the run's notes (printed by validate and run, kept in report.json); said once."""
+        if text not in self.notes:
+            self.notes.append(text)
+
     def initial_value(self, key: int) -> Any:
         """The current initial value of declared variable `key` (as its type reads from gtsam.Values); of a
         measurement-time key: the state at its time, interpolated between the states' initial values."""
@@ -378,6 +409,16 @@ class BuildContext:
             self.records.append(FactorRecord(instances.factor(i, model), spec.label, times[i], group, i))
 
     def add_record(self, factor: gtsam.NonlinearFactor, label: str, time: float) -> None:
+        self.records.append(FactorRecord(factor, label, time))
+
+    def add_constraint(self, factor: gtsam.NonlinearFactor, label: str, time: float = STATIC_TIME) -> None:
+        """A factor a plugin adds of its own, not from a measurement: a hold prior on an unidentifiable parameter,
+        a gauge fixing a free frame. Its variables must be declared; `label` (e.g. "gauge:anchors/position")
+        names it in the residual reports; no entry's kernel or noise scale applies to it."""
+        undeclared = [k for k in factor.keys() if k not in self.key_time]
+        if undeclared:
+            raise PluginError(f"ctx.add_constraint({label!r}): variable {gtsam.DefaultKeyFormatter(undeclared[0])} "
+                              "is declared by no factor (plugin bug: add the constraint after the factors)")
         self.records.append(FactorRecord(factor, label, time))
 
     def hold(self, key: int, axes, reason: str, labels=()) -> None:

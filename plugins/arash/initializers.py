@@ -31,7 +31,7 @@ class BaseTransform(Initializer):
 
     def initialize(self, ctx, spec: Spec) -> None:
         a, b = spec["robot"], spec["other"]
-        family = ctx.keys.get(b, BASE_TRANSFORM.format(robot=a))
+        family = ctx.family(b, BASE_TRANSFORM.format(robot=a))
         if family is None:
             raise spec.error("other", f"no rcm.tool_to_tool or rcm.base_pose factor links {a!r} and {b!r}")
         stream = ctx.stream(spec["stream"])

@@ -200,7 +200,7 @@ class ElasticCableLength(FactorType):
         offsets = desc.parameters["offset"].values
         without = sum(k not in tension_row for k in a_len.state)
         if without:
-            ctx.notes.append(f"{spec.label}: {without} of {len(a_len.state)} length samples had no tension sample "
+            ctx.note(f"{spec.label}: {without} of {len(a_len.state)} length samples had no tension sample "
                              f"at their state and were not used")
         pairs = [(int(k), row) for k, row in zip(a_len.state, a_len.row) if k in tension_row]
         for i in spec.get("cables", range(cdpr.n)):

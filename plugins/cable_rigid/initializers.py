@@ -107,7 +107,7 @@ class MonteCarloCalibration(Initializer):
         R = Rotation.from_quat(arr[:, 3:]).as_matrix()
         R_rel = np.einsum("ji,kjl->kil", R[0], R[1:])
         t_rel = np.einsum("ji,kj->ki", R[0], arr[1:, :3] - arr[0, :3])
-        X0 = ctx.initial.atPose3(ctx.pose_key(robot, 0))
+        X0 = ctx.initial_value(ctx.pose_key(robot, 0))
         R0, p0 = X0.rotation().matrix(), np.asarray(X0.translation())
         c = np.einsum("ij,kjl,cl->cki", R0, R_rel, cdpr.attachments) + p0
         d = t_rel @ R0.T
@@ -170,7 +170,7 @@ class Multilateration(Initializer):
         robot = spec["robot"]
         cdpr = cable_robot(ctx.robot(robot))
         ks, z = length_samples(ctx, spec, ctx.state_set(robot, spec).t, cdpr.n)
-        poses = [ctx.initial.atPose3(ctx.pose_key(robot, int(k))) for k in ks]
+        poses = [ctx.initial_value(ctx.pose_key(robot, int(k))) for k in ks]
         R = np.array([p.rotation().matrix() for p in poses])
         t = np.array([p.translation() for p in poses])
         lines = []

@@ -274,7 +274,7 @@ def verdict(cable: int, r: dict) -> str:
 
 
 def _poses(ctx, states, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    poses = [ctx.initial.atPose3(states.key(int(k))) for k in ks]
+    poses = [ctx.initial_value(states.key(int(k))) for k in ks]
     return (np.array([p.rotation().matrix() for p in poses]).reshape(-1, 3, 3),
             np.array([p.translation() for p in poses]).reshape(-1, 3))
 
@@ -282,7 +282,7 @@ def _poses(ctx, states, ks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def scale_unknown(ctx, robot: str) -> bool:
     """Poses are known only up to scale when some entry estimates a scale for the robot
     (e.g. pose.scaled_relative's `scale:`): the conservative check then adds s^2."""
-    return any(s.get("robot") == robot and "scale" in s.data for s in ctx.config.factors)
+    return any("scale" in s.data for s in ctx.entries(robot=robot))
 
 
 def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
@@ -294,7 +294,7 @@ def diagnose_cable_lengths(ctx, spec: Spec, alpha_of=None) -> dict:
     cdpr = cable_robot(ctx.robot(robot))
     stream, states = ctx.stream(spec["stream"]), ctx.state_set(robot, spec)
     assoc = nearest(states.t, stream.t, spec["tolerance"])
-    have = np.array([ctx.initial.exists(states.key(int(k))) for k in assoc.state], dtype=bool)
+    have = np.array([ctx.has_variable(states.key(int(k))) for k in assoc.state], dtype=bool)
     ks, rows = assoc.state[have], assoc.row[have]
     R, t = _poses(ctx, states, ks)
     unknown = scale_unknown(ctx, robot)

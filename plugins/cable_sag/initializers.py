@@ -42,15 +42,15 @@ class SagForces(Initializer):
     def initialize(self, ctx, spec: Spec) -> None:
         name = spec["robot"]
         robot = sag_robot(ctx.robot(name), spec["reference"])
-        forces, corrections = ctx.keys.get(name, FORCE), ctx.keys.get(name, CORRECTION)
+        forces, corrections = ctx.family(name, FORCE), ctx.family(name, CORRECTION)
         if forces is None:
             raise spec.error("robot", f"no cable.sag factor on robot {name!r}: there are no forces to initialize")
-        pulleys = np.array([ctx.initial.atPoint3(ctx.parameter(name, "pulley", i)) for i in range(robot.n)])
+        pulleys = np.array([ctx.initial_value(ctx.parameter(name, "pulley", i)) for i in range(robot.n)])
         fallback = 0
         for k in range(len(ctx.state_set(name, spec))):
-            if not ctx.initial.exists(forces.key(k)):
+            if not ctx.has_variable(forces.key(k)):
                 continue  # no static pose here
-            X = ctx.initial.atPose3(ctx.pose_key(name, k))
+            X = ctx.initial_value(ctx.pose_key(name, k))
             R, t = X.rotation().matrix(), np.asarray(X.translation())
             f0, dR = initial_reference_force(R, t, pulleys, robot), ROT3.zero()
             if spec["equilibrium"]:
@@ -62,7 +62,7 @@ class SagForces(Initializer):
             ctx.set_initial(forces.key(k), f0)
             ctx.set_initial(corrections.key(k), dR)
         if fallback:
-            ctx.notes.append(f"{spec.label}: {fallback} pose(s) have no equilibrium with the guessed pulleys; "
+            ctx.note(f"{spec.label}: {fallback} pose(s) have no equilibrium with the guessed pulleys; "
                              "their forces start from V = m g / 4, H = V / tan(alpha) "
                              "(docs/models/cable_sag.md#initial-forces)")
 

@@ -129,7 +129,7 @@ class IrProximity(FactorType):
         for i, (k, readings) in enumerate(zip(states, sets)):
             noise = ctx.noise([1.0] * len(readings.rows(spec["noise"])[0]), spec)
             ctx.add(ir_factor(evaluator, i, noise), spec, ctx.state_time(robot, k))
-        ctx.notes.append(f"{spec.label}: {counts[IN]} IR readings in range, {counts[FAR]} beyond it (nothing "
+        ctx.note(f"{spec.label}: {counts[IN]} IR readings in range, {counts[FAR]} beyond it (nothing "
                          f"within {layout.bank.d_max:g} m) and {counts[NEAR]} closer than {layout.bank.d_min:g} m"
                          + (" (censored)" if spec["out_of_range"] == "censored" else " (dropped)"))
 

@@ -74,7 +74,7 @@ def odometry_pairs(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.
     inside, poses = poses_at(stream, states.t, spec.get("max_gap"))
     idx = np.flatnonzero(inside)
     if len(idx) < len(states):
-        ctx.notes.append(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
+        ctx.note(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
                          f"outside stream {stream.name!r} (or across a gap) and get no factor from it")
     segment = segment_ids(stream.t, states.t[idx], spec.get("max_gap"))
     if "sensor" in spec.data:  # sensor poses -> body poses

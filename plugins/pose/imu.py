@@ -125,14 +125,14 @@ class VelocityFromPoses(Initializer):
 
     def initialize(self, ctx, spec: Spec) -> None:
         robot = spec["robot"]
-        family = ctx.keys.get(robot, VELOCITY)
+        family = ctx.family(robot, VELOCITY)
         if family is None:
             raise spec.error("robot", f"no imu.preintegrated factor on robot {robot!r}: it has no velocities")
         states = ctx.state_set(robot, spec)
-        pos = np.array([ctx.initial.atPose3(ctx.pose_key(robot, k)).translation() for k in range(len(states))])
+        pos = np.array([ctx.initial_value(ctx.pose_key(robot, k)).translation() for k in range(len(states))])
         vel = np.gradient(pos, states.t, axis=0)
         for k in range(len(states)):
-            if ctx.initial.exists(family.key(k)):
+            if ctx.has_variable(family.key(k)):
                 ctx.set_initial(family.key(k), vel[k])
 
 
@@ -210,7 +210,7 @@ class OdometryScaleFromImu(Initializer):
         if len(ka) < 3:
             raise spec.error("stream", f"{len(ka)} pairs of consecutive states have odometry: expected at least 3 "
                              "to estimate a scale")
-        first = ctx.initial.atPose3(ctx.pose_key(robot, 0)) if ctx.has_variable(ctx.pose_key(robot, 0)) \
+        first = ctx.initial_value(ctx.pose_key(robot, 0)) if ctx.has_variable(ctx.pose_key(robot, 0)) \
             else gtsam.Pose3()
         turn = first.rotation().matrix() @ before[0].rotation().matrix().T  # odometry frame -> world
         odo = {**dict(zip(ka.tolist(), before)), **dict(zip((ka + 1).tolist(), after))}
@@ -278,7 +278,7 @@ class BridgeOdometryGaps(Initializer):
         robot = spec["robot"]
         states = ctx.state_set(robot, spec)
         keys = [ctx.pose_key(robot, k) for k in range(len(states))]
-        poses = [ctx.initial.atPose3(key) for key in keys]
+        poses = [ctx.initial_value(key) for key in keys]
         ka = odometry_pairs(ctx, spec, robot)[0]
         t_imu, samples = _imu_samples(ctx, spec)
         params = preintegration_params(1e-3, 1e-4, spec["gravity"])

@@ -124,9 +124,9 @@ class BaseTransform(Initializer):
         ka = nearest(ctx.state_set(a, spec).t, stream.t[:1], np.inf).state[0]
         kb = nearest(ctx.state_set(b, spec).t, stream.t[:1], np.inf).state[0]
         z = stream.poses()[0]
-        xa = ctx.initial.atPose3(ctx.pose_key(a, int(ka)))
-        xb = ctx.initial.atPose3(ctx.pose_key(b, int(kb)))
-        fam = ctx.keys.get(b, BASE_TRANSFORM.format(robot=a))
+        xa = ctx.initial_value(ctx.pose_key(a, int(ka)))
+        xb = ctx.initial_value(ctx.pose_key(b, int(kb)))
+        fam = ctx.family(b, BASE_TRANSFORM.format(robot=a))
         if fam is None:
             raise spec.error("other", f"no pose.co_registration factor links {a!r} and {b!r}")
         ctx.set_initial(fam.key(0), xa.compose(z).compose(xb.inverse()))

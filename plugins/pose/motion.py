@@ -150,7 +150,7 @@ class IncrementOdometry(FactorType):
                 factor = gtsam.BetweenFactorPose2(*keys, unicycle_increment(d, theta, np.ones(len(d))), noise)
             ctx.add(factor, spec, t1)
         if outside:
-            ctx.notes.append(f"{spec.label}: {outside} state interval(s) lie outside stream {spec['stream']!r} and "
+            ctx.note(f"{spec.label}: {outside} state interval(s) lie outside stream {spec['stream']!r} and "
                              "have no increment factor")
 
     @classmethod

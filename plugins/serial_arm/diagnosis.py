@@ -80,7 +80,7 @@ def element_name(desc, name: str, index: int | None) -> str:
 def identify(ctx, spec: Spec) -> dict | None:
     """Run by a marker entry's diagnose: only the robot's first marker entry analyses them all."""
     robot = spec["robot"]
-    entries = [s for s in ctx.config.factors if s.type in MARKER_TYPES and s.get("robot") == robot]
+    entries = sorted((s for t in MARKER_TYPES for s in ctx.entries(t, robot)), key=lambda s: s.path)
     if entries[0].path != spec.path:
         return None
     desc = ctx.robot(robot)
@@ -181,7 +181,7 @@ def _hold(ctx, robot: str, desc, info: list, result, names: list[str], used_ks: 
         ks = sorted(used_ks[(name, index)]) if param.time_varying else [None]
         for k in ks:
             key = ctx.parameter(robot, name, index, k)
-            ctx.add_record(hold_factor(key, vartype, value, sorted(axes)), label,
+            ctx.add_constraint(hold_factor(key, vartype, value, sorted(axes)), label,
                            float("-inf") if k is None else ctx.state_time(robot, k))
             ctx.hold(key, axes, reason, axis_labels)
 

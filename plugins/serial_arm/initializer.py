@@ -203,7 +203,7 @@ class PointMarkers(Initializer):
         offsets and placement errors) and its measured points; the entries' base must be the description's."""
         robot = spec["robot"]
         desc = ctx.robot(robot)
-        entries = [s for s in ctx.config.factors if s.type == "arm.tool_position" and s.get("robot") == robot]
+        entries = ctx.entries("arm.tool_position", robot)
         if not entries:
             raise spec.error("robot", f"robot {robot!r} has no arm.tool_position entry to start the base from")
         F, Z, starts, markers = [], [], [], []

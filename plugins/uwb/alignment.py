@@ -24,16 +24,16 @@ ITERATIONS = 12        # Gauss-Newton iterations per start
 REFINED = 3            # best rotations refined with the rotation free
 
 
-def odometry_path(records, state_keys: list[int]) -> np.ndarray | None:
-    """(S, 3) x, y, theta composed from the BetweenFactorPose2 records between consecutive states (the first at the
+def odometry_path(factors, state_keys: list[int]) -> np.ndarray | None:
+    """(S, 3) x, y, theta composed from the BetweenFactorPose2 factors between consecutive states (the first at the
     origin); None when an interval has none."""
     index = {k: i for i, k in enumerate(state_keys)}
     steps: dict[int, gtsam.Pose2] = {}
-    for r in records:
-        if isinstance(r.factor, gtsam.BetweenFactorPose2):
-            a, b = r.factor.keys()
+    for factor in factors:
+        if isinstance(factor, gtsam.BetweenFactorPose2):
+            a, b = factor.keys()
             if a in index and b in index and index[b] == index[a] + 1:
-                steps.setdefault(index[a], r.factor.measured())
+                steps.setdefault(index[a], factor.measured())
     if len(steps) < len(state_keys) - 1:
         return None
     pose, out = gtsam.Pose2(), [[0.0, 0.0, 0.0]]

@@ -185,14 +185,12 @@ class UwbRange(FactorType):
         anchor_type = ctx.robot(spec["anchors"]).parameters[spec["anchor_parameter"]].vartype
         read_anchor = values.atPoint2 if anchor_type is POINT2 else values.atPoint3
         rows = []
-        for record in ctx.records:
-            if record.label != spec.label:
-                continue
-            pose_key, anchor_key, bias_key = record.factor.keys()
+        for factor in ctx.factors(label=spec.label):
+            pose_key, anchor_key, bias_key = factor.keys()
             tag = np.asarray(read_pose(pose_key).transformFrom(b[:2] if planar else b))
             point = np.asarray(read_anchor(anchor_key))
             d = float(np.linalg.norm(tag - point[:len(tag)]))
-            rows.append((anchor_key, d, values.atDouble(bias_key) - float(record.factor.unwhitenedError(values)[0])))
+            rows.append((anchor_key, d, values.atDouble(bias_key) - float(factor.unwhitenedError(values)[0])))
         anchors = sorted({a for a, _, _ in rows})
         if len(rows) < len(anchors) + 10:
             return []

@@ -163,7 +163,7 @@ class Multilateration(Initializer):
         n = ctx.robot(anchors_robot).parameters[param].count
         planar_anchors = ctx.robot(anchors_robot).parameters[param].vartype is POINT2
         keys = [ctx.parameter(anchors_robot, param, i) for i in range(n)]
-        anchors = np.array([np.asarray(ctx.initial.atPoint2(k) if planar_anchors else ctx.initial.atPoint3(k))
+        anchors = np.array([np.asarray(ctx.initial_value(k))
                             for k in keys])
         unknown = sorted(set(spec["unknown"]))
         stream = ctx.stream(spec["stream"])
@@ -180,7 +180,7 @@ class Multilateration(Initializer):
             ctx.set_initial(keys[i], a if not planar_anchors else a[:2])
             if "bias" in spec.data:
                 ctx.set_initial(ctx.parameter(robot, spec["bias"], i, 0), c)
-            ctx.notes.append(f"{spec.label}: anchor {i} initialized at ({', '.join(f'{x:.3f}' for x in a)}), bias "
+            ctx.note(f"{spec.label}: anchor {i} initialized at ({', '.join(f'{x:.3f}' for x in a)}), bias "
                              f"{c:+.3f} m, fit rms {rms:.3f} m over {count} ranges")
 
     def _place(self, ctx, spec: Spec, anchors: np.ndarray, ranges: "_Ranges", planar_anchors: bool,
@@ -197,7 +197,7 @@ class Multilateration(Initializer):
         need = (anchors.shape[1] if height is None else 2) + 1
         window = self._window(ctx, spec, ranges, need)
         pos, usable = multilaterate(states.t, ranges.t, ranges.anchor, ranges.z, anchors, window, height)
-        path = odometry_path(ctx.records, [ctx.pose_key(robot, k) for k in range(len(states))]) \
+        path = odometry_path(ctx.factors(robots=(robot,)), [ctx.pose_key(robot, k) for k in range(len(states))]) \
             if odometry and planar and window > 0 else None
         if path is not None and smear(path, states.t, window) <= SMEAR:
             path = None  # the tag hardly moves while the anchors answer in turn: multilateration places it
@@ -220,22 +220,22 @@ class Multilateration(Initializer):
         robot = spec["robot"]
         local = self._robot_graph(ctx, robot, spec["anchors"])
         if have_multilateration:
-            from_ranges = self._solved_error(local, ctx.initial)
+            from_ranges = self._solved_error(local, ctx.initial_values())
         flat = anchors[ranges.anchor][:, :2]
         rise = 0.0 if height is None else anchors[ranges.anchor][:, 2] - height
         z = np.sqrt(np.maximum(ranges.z ** 2 - rise ** 2, 0.0))  # horizontal ranges (planar tag, 3-D anchors)
         placed = align_pieces(path, states.t, b[:2], nearest_index(states.t, ranges.t), flat, z, guesses)
         keys = [ctx.pose_key(robot, k) for k in range(len(states))]
-        before = {k: ctx.initial.atPose2(k) for k in keys} if have_multilateration else {}
+        before = {k: ctx.initial_value(k) for k in keys} if have_multilateration else {}
         for k, (x, y, th) in zip(keys, placed):
             ctx.set_initial(k, gtsam.Pose2(x, y, th))
-        from_odometry = self._solved_error(local, ctx.initial)
+        from_odometry = self._solved_error(local, ctx.initial_values())
         if have_multilateration and from_ranges <= from_odometry:
             for k, pose in before.items():
                 ctx.set_initial(k, pose)
             return
         better = f" (its solve fits {from_ranges / from_odometry:.3g}x better)" if have_multilateration else ""
-        ctx.notes.append(f"{spec.label}: the ranges alone cannot place the robot epoch by epoch: it starts on its "
+        ctx.note(f"{spec.label}: the ranges alone cannot place the robot epoch by epoch: it starts on its "
                          f"odometry's dead-reckoned path aligned to the ranges (each {PIECE_S:g} s piece placed by a "
                          f"global search over rotation and translation){better}")
 
@@ -269,8 +269,7 @@ class Multilateration(Initializer):
             note = (f"{spec.label}: an epoch of stream {spec['stream']!r} reaches fewer than {need} anchors "
                     f"(round-robin ranging): each state is placed from the ranges within +-{window / 2:.3f} s "
                     "(window: auto)")
-            if note not in ctx.notes:
-                ctx.notes.append(note)
+            ctx.note(note)
         return window
 
     def _self_survey(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges", window: float) -> None:
@@ -300,17 +299,17 @@ class Multilateration(Initializer):
             self._survey_candidate(ctx, spec, keys, ranges, placed, nominal, local)
         placed = outcomes[best][2]
         for factor in gauge:
-            ctx.add_record(factor, f"gauge:{spec['anchors']}/{param}", float("-inf"))
+            ctx.add_constraint(factor, f"gauge:{spec['anchors']}/{param}")
         if nominal is None:
             frame = ("the anchor frame (anchor 0 at the origin, anchor 1 on the +x axis), not the world: compare "
                      "with truth after alignment (truth: align: se3)")
         else:
             frame = ("the frame of the description's anchor values (placement moved rigidly onto them; their "
                      "priors hold it)")
-        ctx.notes.append(f"{spec.label}: no anchor surveyed: {spec['anchors']}/{param} and robot {robot!r} are "
+        ctx.note(f"{spec.label}: no anchor surveyed: {spec['anchors']}/{param} and robot {robot!r} are "
                          f"placed from the ranges alone, in {frame}")
         for i, a in enumerate(placed):
-            ctx.notes.append(f"{spec.label}: anchor {i} placed at ({a[0]:.3f}, {a[1]:.3f})")
+            ctx.note(f"{spec.label}: anchor {i} placed at ({a[0]:.3f}, {a[1]:.3f})")
 
     def _survey_candidate(self, ctx, spec: Spec, keys: list[int], ranges: "_Ranges", anchors: np.ndarray,
                           nominal: np.ndarray | None, local: gtsam.NonlinearFactorGraph):
@@ -323,15 +322,14 @@ class Multilateration(Initializer):
             ctx.set_initial(key, a)
         self._place(ctx, spec, anchors, ranges, True)
         up = bool(anchor_frame(anchors).transformFrom(anchors[2])[1] > 0)
-        return self._solved_error(local, ctx.initial), up, anchors
+        return self._solved_error(local, ctx.initial_values()), up, anchors
 
     @staticmethod
     def _robot_graph(ctx, robot: str, anchors_robot: str) -> gtsam.NonlinearFactorGraph:
         """The factors on the robot's and the anchors' variables alone (its ranges, odometry, priors)."""
         graph = gtsam.NonlinearFactorGraph()
-        for record in ctx.records:
-            if all(ctx.keys.decode(k)[0].robot in (robot, anchors_robot) for k in record.factor.keys()):
-                graph.add(record.factor)
+        for factor in ctx.factors(robots=(robot, anchors_robot)):
+            graph.add(factor)
         return graph
 
     @staticmethod
@@ -348,7 +346,7 @@ class Multilateration(Initializer):
                 origin = p[:2] - np.array([[c, -s], [s, c]]) @ b[:2]
                 ctx.set_initial(ctx.pose_key(robot, k), gtsam.Pose2(origin[0], origin[1], th))
             else:
-                R = gtsam.Rot3.Yaw(th) if heading_mode == "travel" else ctx.initial.atPose3(ctx.pose_key(robot, k)).rotation()
+                R = gtsam.Rot3.Yaw(th) if heading_mode == "travel" else ctx.initial_value(ctx.pose_key(robot, k)).rotation()
                 ctx.set_initial(ctx.pose_key(robot, k), gtsam.Pose3(R, p - R.matrix() @ b))
 
     @staticmethod
@@ -357,11 +355,11 @@ class Multilateration(Initializer):
         out = []
         for k in nearest_index(states.t, t):
             if planar:
-                x = ctx.initial.atPose2(ctx.pose_key(robot, int(k)))
+                x = ctx.initial_value(ctx.pose_key(robot, int(k)))
                 p = np.asarray(x.transformFrom(b[:2]))
                 out.append(p if planar_anchors else np.append(p, b[2]))
             else:
-                out.append(np.asarray(ctx.initial.atPose3(ctx.pose_key(robot, int(k))).transformFrom(b)))
+                out.append(np.asarray(ctx.initial_value(ctx.pose_key(robot, int(k))).transformFrom(b)))
         return np.array(out)
 
 

@@ -51,7 +51,7 @@ def wheel_steps(stream, drive, gyro_stream=None) -> rules.WheelSteps:
                             passive_offset=drive.nominal.get(PASSIVE_OFFSET, 0.0))
 
 
-def inside_gyro_span(stream, gyro_stream, spec: Spec, notes: list) -> Stream:
+def inside_gyro_span(stream, gyro_stream, spec: Spec, note) -> Stream:
     """The wheel samples inside the gyro stream's span (a note counts those left out); DataError with
     fewer than two."""
     rows = inside(gyro_stream.t, stream.t)
@@ -61,7 +61,7 @@ def inside_gyro_span(stream, gyro_stream, spec: Spec, notes: list) -> Stream:
                         f"{gyro_stream.t[-1]:.6f} s) overlap by fewer than two wheel samples (expected streams on one "
                         f"clock that overlap)")
     if not rows.all():
-        notes.append(f"{spec.label}: {int((~rows).sum())} of {len(rows)} samples of stream {stream.name!r} lie "
+        note(f"{spec.label}: {int((~rows).sum())} of {len(rows)} samples of stream {stream.name!r} lie "
                      f"outside gyro stream {gyro_stream.name!r} and are left out")
     return stream.subset(rows)
 
@@ -122,12 +122,12 @@ class Baseline(FactorType):
         stream = ctx.stream(spec["stream"])
         gyro_stream = ctx.stream(spec["gyro_stream"]) if "gyro_stream" in spec.data else None
         if gyro_stream is not None:
-            stream = inside_gyro_span(stream, gyro_stream, spec, ctx.notes)
+            stream = inside_gyro_span(stream, gyro_stream, spec, ctx.note)
         steps = wheel_steps(stream, drive_of(ctx.robot(robot)), gyro_stream)
         poses = rule_poses(spec["method"], steps, spec["thresholds"], spec["reconstruct"])
         ks = np.flatnonzero((states.t >= stream.t[0]) & (states.t <= stream.t[-1]))
         if len(ks) < len(states):
-            ctx.notes.append(f"{spec.label}: {len(states) - len(ks)} of {len(states)} states of robot {robot!r} "
+            ctx.note(f"{spec.label}: {len(states) - len(ks)} of {len(states)} states of robot {robot!r} "
                              f"lie outside stream {stream.name!r} and get no dead-reckoning factor")
         at = np.column_stack([np.interp(states.t[ks], stream.t, poses[:, i]) for i in range(3)])
         fresh = [not ctx.has_variable(key) for key in states.family.keys(ks)]

@@ -74,7 +74,7 @@ def intervals(ctx, spec: Spec, stream=None) -> np.ndarray:
                         f"{states.t[0]:.6f} .. {states.t[-1]:.6f} s: no state interval lies inside the stream "
                         f"(expected streams on one clock that overlap)")
     if len(kept) < len(ks):
-        ctx.notes.append(f"{spec.label}: {len(ks) - len(kept)} of {len(ks)} state intervals of {spec['robot']!r} lie "
+        ctx.note(f"{spec.label}: {len(ks) - len(kept)} of {len(ks)} state intervals of {spec['robot']!r} lie "
                          f"outside stream {stream.name!r} and get no factor from it")
     return kept
 

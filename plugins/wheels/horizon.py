@@ -163,7 +163,7 @@ class LongHorizon(FactorType):
         spans = windows(states.t, usable, parts, spec.get("horizon"), travel, spec.get("spacing"),
                         spec["anchors"] == "every_checkpoint")
         if len(spans) > 1:
-            ctx.notes.append(f"{spec.label}: {len(spans)} windows share their wheel samples; the intrinsics' sigmas "
+            ctx.note(f"{spec.label}: {len(spans)} windows share their wheel samples; the intrinsics' sigmas "
                              "treat their checkpoints as independent (a weighting, not a noise model): judge the "
                              "calibration held out (fusionkit crossval, or dead reckoning on another run)")
         for window in spans:

@@ -66,3 +66,33 @@ def test_every_plugin_module_imports(path):
     module = importlib.import_module(".".join(("fusionkit_plugins",) + parts[:-1] if parts[-1] == "__init__"
                                               else ("fusionkit_plugins",) + parts))
     assert module.__file__ and Path(module.__file__).resolve() == path.resolve()
+
+
+def ctx_attributes(path: Path) -> list[tuple[int, str]]:
+    """(line, name) of every `ctx.<name>` the file reads or calls."""
+    return [(node.lineno, node.attr) for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "ctx"]
+
+
+def test_plugins_use_only_the_build_context_protocol():
+    """Every `ctx.<name>` in the plugins (and the example third-party package) is an operation of
+    fusionkit.api.BuildContext: none reaches the core's internals (ctx.initial, ctx.keys, ctx.records, ctx.config,
+    ctx.add_record)."""
+    from fusionkit.graph.context import MEMBERS
+    used = {(p, line, name) for p in plugin_files() for line, name in ctx_attributes(p)}
+    assert len(used) > 400
+    outside = sorted(f"{p.relative_to(REPO)}:{line}: ctx.{name}" for p, line, name in used if name not in MEMBERS)
+    assert not outside, "not in fusionkit.api.BuildContext:\n" + "\n".join(outside)
+
+
+def test_the_core_build_context_implements_the_protocol_and_a_stray_use_is_caught(tmp_path):
+    from fusionkit.config.loader import load_config
+    from fusionkit.graph.builder import BuildContext as Concrete
+    from fusionkit.pipeline import read_sources
+    config = load_config(REPO / "configs" / "arm_calibration.yaml", ["sources.0.params.configurations=5"])
+    ctx = Concrete(config, read_sources(config)[0])
+    assert isinstance(ctx, fusionkit.api.BuildContext)
+    stray = tmp_path / "stray.py"
+    stray.write_text("def build(ctx, spec):\n    return ctx.initial.atPose3(0), ctx.keys.get('a', 'b')\n")
+    from fusionkit.graph.context import MEMBERS
+    assert [name for _, name in ctx_attributes(stray) if name not in MEMBERS] == ["initial", "keys"]
