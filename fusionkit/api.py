@@ -15,6 +15,7 @@ from .components import (CheckScope, Command, FactorType, Initializer, ResidualP
                          SourceOutput, Spec, pose_parts)
 from .data.files import read_csv_stream
 from .design import Choice, compared_with_random, d_optimal, information, prior_information
+from .config.fragments import GRAVITY, NAME_SCHEMA, NON_NEGATIVE_SCHEMA, POSITIVE_SCHEMA
 from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
 from .data.stream import PLANAR_POSE_COLUMNS, POSE_COLUMNS, Stream, pose_array_from, pose_stream, poses_from_array
 from .errors import ConfigError, DataError, FusionkitError, PluginError, SolverError
@@ -59,7 +60,8 @@ API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 # 1.11: pass_token(values): fusionkit's evaluator is costing or linearizing this very Values object (factors
 #      with many variables that share one evaluation read them once per pass)
 # 1.12: BuildContext, the protocol of the `ctx` a plugin receives (ctx.family, robot_of, initial_values, entries,
-#      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API)
+#      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API);
+#      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -81,6 +83,8 @@ __all__ = [
     # streams and association with states
     "Stream", "POSE_COLUMNS", "PLANAR_POSE_COLUMNS", "pose_stream", "pose_array_from", "poses_from_array",
     "Association", "nearest", "TOLERANCE_SCHEMA", "interpolate_poses", "segment_ids",
+    # schema fragments and the standard gravity every family shares
+    "NAME_SCHEMA", "POSITIVE_SCHEMA", "NON_NEGATIVE_SCHEMA", "GRAVITY",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment",
     "differential_drive_twist",

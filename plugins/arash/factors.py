@@ -9,15 +9,15 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType,
-                           ResidualPart, Spec, gaussian, pose_sigmas, poses_from_array)
+from fusionkit.api import (FactorExample, FactorType, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA,
+                           POSITIVE_SCHEMA as POSITIVE, ResidualPart, Spec, TOLERANCE_SCHEMA, gaussian, pose_sigmas,
+                           poses_from_array)
 
 from .kinematics import CONVENTIONS
 from .model import JOINTS, PARAMETERS, convention_of
 from .residuals import tool_position_residual, tool_to_tool_residual
 
 BASE_TRANSFORM = "base_in_{robot}"  # static pose3 of robot `other`: its base frame in robot `robot`'s
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 
 
 def columns_schema(default: list[str]) -> dict:

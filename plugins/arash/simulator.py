@@ -26,8 +26,8 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, ConfigError, Simulator, SourceOutput, Stream, noisy,
-                           pose_array_from, pose_stream, robot_description_data)
+from fusionkit.api import (ConfigError, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA, Simulator,
+                           SourceOutput, Stream, noisy, pose_array_from, pose_stream, robot_description_data)
 
 from .kinematics import (CODE_R_THESIS, MM_PER_M, code_from_thesis, code_point_from_thesis, inverse_kinematics,
                          tip_position)
@@ -35,7 +35,6 @@ from .model import JOINTS, PARAMETERS
 
 DESCRIPTIONS = {"thesis": "arash_asist", "authors_code": "arash_asist_mm"}
 ROBOTS = ("leader", "follower")
-NONNEG = {"type": "number", "minimum": 0}
 ERRORS = {"type": "object", "properties": {p: {"type": "number"} for p in PARAMETERS},
           "required": list(PARAMETERS), "additionalProperties": False}
 INSERTION_SIGN = -1.0  # ARASH:ASiST's insertion in the thesis convention: d <= 0 (the tip at the RCM minus |d| v)

@@ -8,8 +8,8 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, gaussian, parameter_indices,
-                           range_factor, Spec, Stream, vectorized_factor)
+from fusionkit.api import (FactorExample, FactorType, POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, Stream,
+                           TOLERANCE_SCHEMA, gaussian, parameter_indices, range_factor, vectorized_factor)
 
 LENGTH_PART = [ResidualPart("length", "m", (0,))]  # a cable-length residual (m)
 
@@ -18,7 +18,6 @@ from .model import cable_robot
 from .pulley import pulley_cables
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
 
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
 INDEX_LIST = {"type": "array", "items": {"type": "integer", "minimum": 0}, "minItems": 1}
 
 

@@ -27,15 +27,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import POSE_COLUMNS, TOLERANCE_SCHEMA, fit_range_origin, Initializer, interpolate_poses, nearest, Spec
+from fusionkit.api import (Initializer, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSITIVE_SCHEMA as POSITIVE, Spec,
+                           TOLERANCE_SCHEMA, fit_range_origin, interpolate_poses, nearest)
 
 from .factors import check_cdpr, length_columns
 from .model import cable_robot
 from .monte_carlo import CONVERGED_SPREAD, Calibration, calibrate
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
-NONNEG = {"type": "number", "minimum": 0}
 MIN_SAMPLES = 10
 EDGE_SHARE = 0.3  # share of the L0 belief in the outer tenth of its prior that flags the edge (uniform: 0.1)
 AXIS_NAMES = ("x", "y", "z")

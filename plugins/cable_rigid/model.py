@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fusionkit.api import Lines, Points, RobotDescription, RobotModel
+from fusionkit.api import GRAVITY, Lines, Points, RobotDescription, RobotModel
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 
@@ -57,7 +57,6 @@ def cable_robot(desc: RobotDescription) -> CableRobot:
                       float(cables.get("pulley_radius", 0.0)), np.asarray(cables.get("swivel_axis", [0, 0, 1]), float))
 
 
-GRAVITY = 9.81  # m/s^2, unless the description gives `gravity`
 
 
 def store_as_mass_and_weight(desc: RobotDescription) -> None:

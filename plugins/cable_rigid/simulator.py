@@ -36,19 +36,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, ConfigError, clock_times, noisy, odometry, pose_stream,
-                           poses_from_array, robot_description_data, sample_times, Simulator, SourceOutput, Stream)
-from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
+from fusionkit.api import (CLOCK_SCHEMA, ConfigError, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS,
+                           POSE_NOISE_SCHEMA as SIGMA, POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream,
+                           clock_times, noisy, odometry, pose_stream, poses_from_array, robot_description_data,
+                           sample_times)
 
 from .pulley import pulley_cables
 
-GRAVITY = 9.81
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
 ENCODER_OFFSET = "encoder_time_offset"  # the description's parameter when the encoders are simulated lagging (s)
 ENCODER_RATE = "encoder_clock_rate"  # ... and when their clock also runs at a wrong rate (s/s)
 
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
-NONNEG = {"type": "number", "minimum": 0}
 
 # Workspace and trajectory shape: amplitudes are fractions of the room from home to the pulley
 # footprint's bounding box (x, y) and to the clearance below the pulleys / half the home height (z).

@@ -20,8 +20,8 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (ROT3, TOLERANCE_SCHEMA, FactorExample, FactorType, gaussian, parameter_indices, Spec,
-                           vector_type)
+from fusionkit.api import (FactorExample, FactorType, POSITIVE_SCHEMA as SIGMA, ROT3, Spec, TOLERANCE_SCHEMA, gaussian,
+                           parameter_indices, vector_type)
 
 from .model import (CORRECTION, FORCE, REFERENCE, cable_count, check_sag_robot, length_columns, sag_robot,
                     shipped_robot)
@@ -29,7 +29,6 @@ from .static_solver import inverse_pose
 from .statics import SagRobot, equilibrium
 
 VECTOR2 = vector_type(2)
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
 
 
 def sag_residual(robot: SagRobot, z: np.ndarray, X: gtsam.Pose3, dR: gtsam.Rot3, F: np.ndarray,

@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import RobotDescription, Spec, robot_description_data
+from fusionkit.api import GRAVITY, RobotDescription, Spec, robot_description_data
 
 from .statics import N_CABLES, SagRobot
 
 ROBOT_NAME = "cdpr"  # the robot's key in the configs, truth and robots/cdpr.yaml the simulator writes
-GRAVITY = 9.81  # m/s^2, as the source (34 kg -> 333.54 N); a description may give its own `gravity`
 CORRECTION = "orientation_correction"  # dR_k, rot3 per static pose
 FORCE = "reference_force"              # (H_ref, V_ref) per static pose, N
 REFERENCE = {"type": "integer", "minimum": 0, "default": 0}  # the reference cable's index (thesis eq. 5.11)

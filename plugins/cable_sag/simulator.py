@@ -28,14 +28,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, ConfigError, noisy, pose_stream, poses_from_array, robot_description_data,
-                           Simulator, SourceOutput, Stream)
-from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
+from fusionkit.api import (ConfigError, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA as SIGMA,
+                           POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream, noisy, pose_stream,
+                           poses_from_array, robot_description_data)
 
 from .model import ROBOT_NAME, shipped_robot
 from .static_solver import StaticsError, inverse_pose
 
-NONNEG = {"type": "number", "minimum": 0}
 BOX = {"type": "object", "properties": {"min": {"type": "array", "items": {"type": "number"}, "minItems": 3,
                                                 "maxItems": 3},
                                         "max": {"type": "array", "items": {"type": "number"}, "minItems": 3,
@@ -64,7 +63,6 @@ HEIGHT_SIGMA = 0.01
 REFINED_HEIGHT_SIGMA = 1e-4
 
 
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 
 
 def _dwell_and_swing(swing: dict, poses: np.ndarray, lengths: np.ndarray, force: np.ndarray,

@@ -9,7 +9,8 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, Spec, gaussian, held_intervals
+from fusionkit.api import (FactorExample, FactorType, NAME_SCHEMA as NAME, NON_NEGATIVE_SCHEMA as NONNEG,
+                           POSE_SIGMA_SCHEMA, Spec, TOLERANCE_SCHEMA, gaussian, held_intervals)
 
 from .evaluator import IrEntryEvaluator
 from .irfactor import FAR, IN, NEAR, NOISE_MODES, IrModelContext, ReadingSet
@@ -17,8 +18,6 @@ from .model import alphas, ir_layout, ir_sensor_names, shipped_layout, walls_of
 from .velocity import preintegrate
 from .walls import box_walls, sensor_distances
 
-NAME = {"type": "string"}
-NONNEG = {"type": "number", "minimum": 0}
 ALPHA = {"type": "array", "items": NONNEG, "minItems": 4, "maxItems": 6}
 INPUT = {"enum": ["twist", "wheels"], "default": "twist"}
 FLOOR_DEFAULT = {"rotation": 1e-3, "translation": 1e-4}  # per sqrt(s): rad, m

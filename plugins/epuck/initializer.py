@@ -6,14 +6,13 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import Initializer, Spec, nearest
+from fusionkit.api import Initializer, NAME_SCHEMA as NAME, Spec, nearest
 
 from .factors import (FLOOR_DEFAULT, MOTION_SCHEMA, check_motion_entry, commands, motion_increments, reading_set)
 from .irfactor import IrModelContext
 from .model import alphas, ir_layout, ir_sensor_names, walls_of
 from .sequential import forward_pass
 
-NAME = {"type": "string"}
 OUTLIER_K = 3.0  # the forward pass bounds each reading's pull (Cauchy, sigmas): a grazing ray must not jerk it
 
 

@@ -30,13 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit.api import Lines, RobotDescription, RobotModel, robot_description_data
+from fusionkit.api import Lines, POSITIVE_SCHEMA as POSITIVE, RobotDescription, RobotModel, robot_description_data
 
 from .irmodel import Bank
 from .walls import segments_of
 
 IR_TYPE = "ir_proximity"
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 POINT = {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}
 
 

@@ -21,16 +21,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import POSE_NOISE_SCHEMA, ConfigError, Simulator, SourceOutput, Stream, pose_stream, \
-    robot_description_data
+from fusionkit.api import (ConfigError, NON_NEGATIVE_SCHEMA as NONNEG, POSE_NOISE_SCHEMA, POSITIVE_SCHEMA as POSITIVE,
+                           Simulator, SourceOutput, Stream, pose_stream, robot_description_data)
 
 from .model import alphas, ir_layout_from_data, walls_from_data
 from .velocity import sample_motion
 from .walls import sensor_distances
 
 ROBOT, ARENA = "puck", "arena"
-NONNEG = {"type": "number", "minimum": 0}
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 LOOKAHEAD = 0.03   # m: pure pursuit
 MAX_TURN = 4.0     # rad/s: the controller's limit on omega
 

@@ -8,8 +8,8 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
-                           FactorType, gaussian, interpolate_poses, pose_parts, pose_sigmas, poses_from_array, segment_ids,
-                           Spec, Stream, vectorized_factor)
+                           FactorType, gaussian, interpolate_poses, pose_parts, pose_sigmas, poses_from_array,
+                           segment_ids, Spec, Stream, vectorized_factor)
 
 from .residuals import CO_REGISTRATION, SCALED_BETWEEN
 

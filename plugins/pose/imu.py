@@ -16,17 +16,16 @@ from typing import TYPE_CHECKING
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_COLUMNS, VELOCITY3, FactorExample, FactorType, Initializer, Spec, held_intervals
+from fusionkit.api import (FactorExample, FactorType, GRAVITY, Initializer, NAME_SCHEMA as NAME, POSE_COLUMNS, Spec,
+                           VELOCITY3, held_intervals)
 
 from .factors import odometry_pairs
 
 if TYPE_CHECKING:
     from scipy.sparse import coo_matrix
 
-NAME = {"type": "string"}
 IMU_COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz")
 VELOCITY = "velocity"
-GRAVITY = 9.81  # m/s^2, the default of `gravity:`
 
 
 def preintegration_params(accel_density: float, gyro_density: float, gravity: float,

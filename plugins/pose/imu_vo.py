@@ -24,15 +24,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, odometry, pose_stream, poses_from_array, sample_times,
-                           Simulator, SourceOutput, Stream)
+from fusionkit.api import (GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA,
+                           POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream, odometry, pose_stream,
+                           poses_from_array, sample_times)
 
 ROBOT = "cam"
-GRAVITY = 9.81
 LAP = 24.0  # s
 IMU_COLUMNS = ("ax", "ay", "az", "gx", "gy", "gz")
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
-NONNEG = {"type": "number", "minimum": 0}
 
 
 def _room_path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -15,13 +15,12 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE2, POSE_SIGMA_SCHEMA, differential_drive_twist, FactorExample, FactorType,
-                           gaussian, held_intervals, pose_sigmas, Spec, unicycle_increment, vectorized_factor)
+from fusionkit.api import (FactorExample, FactorType, NAME_SCHEMA as NAME, POSE2, POSE_SIGMA_SCHEMA,
+                           POSITIVE_SCHEMA as SIGMA, Spec, differential_drive_twist, gaussian, held_intervals,
+                           pose_sigmas, unicycle_increment, vectorized_factor)
 
 from .residuals import CONSTANT_VELOCITY
 
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
-NAME = {"type": "string"}
 
 
 class DiffDriveOdometry(FactorType):

@@ -6,9 +6,8 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import (noisy, odometry, pose_array_from, pose_stream, poses_from_array, sample_times,
-                           Simulator, smooth_trajectory, SourceOutput)
-from fusionkit.api import POSE_NOISE_SCHEMA as SIGMA
+from fusionkit.api import (POSE_NOISE_SCHEMA as SIGMA, Simulator, SourceOutput, noisy, odometry, pose_array_from,
+                           pose_stream, poses_from_array, sample_times, smooth_trajectory)
 
 
 class ScaledVoSimulator(Simulator):

@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 from .lazy_pinocchio import pin
 
-from fusionkit.api import RobotDescription
+from fusionkit.api import RobotDescription, lie
 
-from fusionkit.api import lie
 from .chain import SerialChain
 from .factors import entry_layout
 from .kinematics import joint_deltas, parameters_of

@@ -12,18 +12,16 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_SIGMA_SCHEMA, TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, Spec,
-                           gaussian, pose_parts, pose_sigmas)
+from fusionkit.api import (FactorExample, FactorType, NAME_SCHEMA as NAME, POSE_COLUMNS, POSE_SIGMA_SCHEMA,
+                           POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, TOLERANCE_SCHEMA, gaussian, lie, pose_parts,
+                           pose_sigmas)
 
 from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
-from fusionkit.api import lie
 from .model import arm_of, chain_from, marker_of, tool_frames
 from .urdf import PREFIX, urdf_path
 
-NAME = {"type": "string"}
 TOOL_FRAME = {"type": "string"}  # the description's tool frame the entry measures (required when it has several)
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
 
 
 def entry_layout(arm, spec: Spec, tool_type: str, base: bool = True) -> tuple[Layout, list[tuple[str, int | None]]]:

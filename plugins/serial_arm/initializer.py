@@ -26,14 +26,13 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_COLUMNS, TOLERANCE_SCHEMA, Initializer, Spec, nearest
+from fusionkit.api import Initializer, NAME_SCHEMA as NAME, POSE_COLUMNS, Spec, TOLERANCE_SCHEMA, nearest
 
 from .batch import marker_poses
 from .factors import TOOL_FRAME, check_arm_entry, entry_arm, entry_layout, pose_matrices
 from .kinematics import Layout, Parameters
 from .model import marker_of, tool_frames
 
-NAME = {"type": "string"}
 DEGENERATE = 1e-6  # relative singular value below which the rotations leave a second solution open
 
 

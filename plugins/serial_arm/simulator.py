@@ -14,8 +14,8 @@ from pathlib import Path
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE3, POSE_COLUMNS, POSE_NOISE_SCHEMA, ConfigError, Simulator, SourceOutput, Stream, noisy,
-                           pose_stream, robot_description_data)
+from fusionkit.api import (ConfigError, NON_NEGATIVE_SCHEMA as NONNEG, POSE3, POSE_COLUMNS, POSE_NOISE_SCHEMA,
+                           Simulator, SourceOutput, Stream, noisy, pose_stream, robot_description_data)
 
 from .factors import entry_layout
 from .identifiability import analyze, kinematic_regressor
@@ -25,7 +25,6 @@ from .model import Arm, chain_from, couplings_of, kinematic_groups, tool_frames
 from .urdf import PREFIX, urdf_path
 
 ROBOTS = Path(__file__).parent / "robots"
-POSITIVE = {"type": "number", "minimum": 0}
 DRIFT_PARAMETER = "drifting_offset"
 
 
@@ -50,14 +49,14 @@ class ArmSimulator(Simulator):
                              "duration": {"type": "number", "exclusiveMinimum": 0},
                              "rate": {"type": "number", "exclusiveMinimum": 0},
                              "measurement": {"enum": ["pose", "position"]},
-                             "tracker_sigma": POSE_NOISE_SCHEMA, "encoder_sigma": POSITIVE,
+                             "tracker_sigma": POSE_NOISE_SCHEMA, "encoder_sigma": NONNEG,
                              "errors": {"type": "object",
                                         "properties": {"base": POSE_NOISE_SCHEMA, "tool": POSE_NOISE_SCHEMA,
-                                                       "joint_offsets": POSITIVE, "placements": POSE_NOISE_SCHEMA,
-                                                       "compliances": POSITIVE, "mass_compliances": POSITIVE},
+                                                       "joint_offsets": NONNEG, "placements": POSE_NOISE_SCHEMA,
+                                                       "compliances": NONNEG, "mass_compliances": NONNEG},
                                         "additionalProperties": False},
                              "drift": {"type": "object",
-                                       "properties": {"joint": {"type": "integer", "minimum": 0}, "change": POSITIVE,
+                                       "properties": {"joint": {"type": "integer", "minimum": 0}, "change": NONNEG,
                                                       "random_walk": {"type": "number", "exclusiveMinimum": 0}},
                                        "additionalProperties": False}},
               "additionalProperties": False}

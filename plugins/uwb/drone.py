@@ -27,15 +27,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import (CLOCK_SCHEMA, POSE_COLUMNS, POSE_NOISE_SCHEMA, clock_times, pose_stream, sample_times, Simulator,
-                           SourceOutput, Stream)
+from fusionkit.api import (CLOCK_SCHEMA, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA,
+                           POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream, clock_times, pose_stream,
+                           sample_times)
 
 from .simulator import ANCHORS
 
 VEHICLE = "drone"
-GRAVITY = 9.81
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
-NONNEG = {"type": "number", "minimum": 0}
 ANCHOR_POINTS = [[0.0, 0.0, 0.3], [10.0, 0.0, 2.7], [10.0, 8.0, 0.3], [0.0, 8.0, 2.7], [5.0, 0.0, 2.9],
                  [5.0, 8.0, 0.2]]
 LAP = 30.0  # s

@@ -17,15 +17,14 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POINT2, POINT3, POSE2, TOLERANCE_SCHEMA, FactorExample, FactorType, ResidualPart, gaussian,
-                           range_factor, Spec, vectorized_factor)
+from fusionkit.api import (FactorExample, FactorType, NAME_SCHEMA as NAME, POINT2, POINT3, POSE2,
+                           POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, TOLERANCE_SCHEMA, gaussian, range_factor,
+                           vectorized_factor)
 
 RANGE_PART = [ResidualPart("range", "m", (0,))]  # a range residual (m)
 
 from .residuals import TAG_RANGES, scaled_range_residual
 
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
-NAME = {"type": "string"}
 ANCHOR_PARAMETER = {**NAME, "default": "anchor"}  # the anchors' point parameter
 RANGE_COLUMN = {**NAME, "default": "range"}       # with `anchor_column`: the ranges' column
 

@@ -27,13 +27,12 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from fusionkit.api import POINT2, POSE2, fit_range_origin, Initializer, Spec
+from fusionkit.api import Initializer, NAME_SCHEMA as NAME, POINT2, POSE2, Spec, fit_range_origin
 
 from .alignment import PIECE_S, align_pieces, odometry_path
 from .factors import ANCHOR_PARAMETER, RANGE_COLUMN, _range_rows, lever_arm
 from .survey import anchor_frame, gauge_factors, line_of_sight, place_anchors, range_matrix, rigid_fit
 
-NAME = {"type": "string"}
 GN_ITERATIONS = 10
 ROBUST_SCALE = 0.3  # m: ranges this far off count half (Cauchy weights: NLOS outliers hardly pull)
 HEADING_BASELINE = 1.0  # s: planar headings from positions this far apart (not from noisy neighbours)

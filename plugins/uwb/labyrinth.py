@@ -17,9 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fusionkit.api import pose_stream, Source, SourceOutput, Spec, Stream
+from fusionkit.api import NAME_SCHEMA as NAME, Source, SourceOutput, Spec, Stream, pose_stream
 
-NAME = {"type": "string"}
 
 
 def _rows(path: Path, kind: str) -> np.ndarray:

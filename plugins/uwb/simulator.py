@@ -33,12 +33,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import CLOCK_SCHEMA, clock_times, pose_stream, sample_times, Simulator, SourceOutput, Stream
+from fusionkit.api import (CLOCK_SCHEMA, NON_NEGATIVE_SCHEMA as NONNEG, POSITIVE_SCHEMA as POSITIVE, Simulator,
+                           SourceOutput, Stream, clock_times, pose_stream, sample_times)
 
 ROBOT_NAMES = ("a", "b")
 ANCHORS = "anchors"
-NONNEG = {"type": "number", "minimum": 0}
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 WHEEL_DISTANCE = 0.3      # m
 LEVER_ARM = [0.10, 0.05]  # m, tag on the robot
 ROOM = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]]  # anchors at the corners (m)

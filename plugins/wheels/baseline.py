@@ -13,15 +13,14 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import (POSE_SIGMA_SCHEMA, DataError, FactorExample, FactorType, Spec, Stream, gaussian,
-                           pose_sigmas)
+from fusionkit.api import (DataError, FactorExample, FactorType, NAME_SCHEMA as NAME, POSE_SIGMA_SCHEMA, Spec, Stream,
+                           gaussian, pose_sigmas)
 
 from . import rules
 from .factors import check_drive_entry, require_gyro, require_wheels
 from .kinematics import GYRO, IMU_GYRO, gyro_integrals, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, drive_of
 
-NAME = {"type": "string"}
 RATE = {"type": "number", "minimum": 0}
 NEEDS = {"odometry": (), "gyrodometry": ("gyro",), "first_version": ("passive", "gyro"),
          "minimal_gyro": ("passive", "gyro"), "final_version": ("passive", "gyro")}

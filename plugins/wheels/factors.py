@@ -11,15 +11,14 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import SCALAR, DataError, FactorExample, FactorType, Spec, gaussian
+from fusionkit.api import (DataError, FactorExample, FactorType, NAME_SCHEMA as NAME, POSITIVE_SCHEMA as SIGMA, SCALAR,
+                           Spec, gaussian)
 
 from .kinematics import GYRO, IMU_GYRO, driven_twist, gyro_integrals, gyro_turns, increments, inside, wheel_column
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, RADIUS, RADIUS_LEFT, RADIUS_RIGHT, drive_of
 from .preintegration import preintegrate, preintegrated_residual
 from .residuals import encoder_residual, gyro_residual, lateral_residual, over_read
 
-NAME = {"type": "string"}
-SIGMA = {"type": "number", "exclusiveMinimum": 0}
 EVERY = {"type": "integer", "minimum": 1, "default": 1}
 
 

@@ -30,14 +30,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import (POSE_COLUMNS, POSE_NOISE_SCHEMA, Simulator, SourceOutput, Stream,
-                           pose_stream, robot_description_data, sample_times)
+from fusionkit.api import (NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA, POSITIVE_SCHEMA as POSITIVE,
+                           Simulator, SourceOutput, Stream, pose_stream, robot_description_data, sample_times)
 
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, PASSIVE_RADIUS, RADIUS, RADIUS_LEFT, RADIUS_RIGHT
 from .rules import integrate
 
-NONNEG = {"type": "number", "minimum": 0}
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
 COUNT = {"type": "integer", "minimum": 0}
 SHAPES = ("loop", "figure_eight", "square", "slalom", "random")
 LOOP_RADIUS = 0.5     # m: loop and figure-eight radius
