@@ -19,7 +19,7 @@ from ..time_offset.config import TimeOffset
 from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, noise_scale, with_kernel
-from .variables import VarType, vartype_named
+from .variables import POSE3, VarType, vartype_named
 from .evaluator import GraphEvaluator
 from .vectorized import InstanceCache, VectorizedGroup, VectorizedResidual
 
@@ -197,6 +197,16 @@ class BuildContext:
         """A copy of the initial values of every declared variable (for a plugin's own local solve or error; set
         values with set_initial)."""
         return gtsam.Values(self.initial)
+
+    def base_transform(self, other: str, robot: str, prior_sigma=None, declare: bool = True) -> int | None:
+        """The key of `<other>/base_in_<robot>`: robot `other`'s base frame in robot `robot`'s, a static pose3
+        (identity start; `prior_sigma` per tangent axis around it) that the families linking two robots share.
+        declare=False: its key if some factor declared it, else None."""
+        name = f"base_in_{robot}"
+        if not declare:
+            family = self.keys.get(other, name)
+            return None if family is None else family.key(0)
+        return self.static_variable(other, name, POSE3, gtsam.Pose3(), prior_sigma)
 
     def family(self, robot: str, name: str):
         """The variable family `name` of robot `robot` that a factor declared (its `key(k)`), or None."""

@@ -58,6 +58,10 @@ class BuildContext(Protocol):
     def static_variable(self, robot: str, name: str, vartype: VarType, initial: Any, prior_sigma: Any = None) -> int:
         """A plugin's own static variable (e.g. an unknown transform between two robots)."""
 
+    def base_transform(self, other: str, robot: str, prior_sigma=None, declare: bool = True) -> int | None:
+        """The key of `<other>/base_in_<robot>`, robot `other`'s base frame in robot `robot`'s (a static pose3 the
+        families linking two robots share); declare=False: its key if declared, else None."""
+
     def family(self, robot: str, name: str) -> Any:
         """A declared variable family of the robot (`.key(k)`), or None."""
 

@@ -17,7 +17,6 @@ from .kinematics import CONVENTIONS
 from .model import JOINTS, PARAMETERS, convention_of
 from .residuals import tool_position_residual, tool_to_tool_residual
 
-BASE_TRANSFORM = "base_in_{robot}"  # static pose3 of robot `other`: its base frame in robot `robot`'s
 
 
 def columns_schema(default: list[str]) -> dict:
@@ -48,7 +47,7 @@ def parameter_keys(ctx, robot: str, k: int) -> list[int]:
 
 def base_key(ctx, spec: Spec) -> int:
     """`<other>/base_in_<robot>`: robot `other`'s base frame in robot `robot`'s (set by rcm.base_transform)."""
-    return ctx.static_variable(spec["other"], BASE_TRANSFORM.format(robot=spec["robot"]), POSE3, gtsam.Pose3())
+    return ctx.base_transform(spec["other"], spec["robot"])
 
 
 def measurements(ctx, spec: Spec) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 
 from fusionkit.api import TOLERANCE_SCHEMA, Initializer, Spec, nearest
 
-from .factors import BASE_TRANSFORM, columns_schema, check_pair, measurements
+from .factors import columns_schema, check_pair, measurements
 from .kinematics import tip_position
 from .model import PARAMETERS, convention_of
 
@@ -31,8 +31,8 @@ class BaseTransform(Initializer):
 
     def initialize(self, ctx, spec: Spec) -> None:
         a, b = spec["robot"], spec["other"]
-        family = ctx.family(b, BASE_TRANSFORM.format(robot=a))
-        if family is None:
+        base = ctx.base_transform(b, a, declare=False)
+        if base is None:
             raise spec.error("other", f"no rcm.tool_to_tool or rcm.base_pose factor links {a!r} and {b!r}")
         stream = ctx.stream(spec["stream"])
         match_a = nearest(ctx.state_set(a, spec).t, stream.t, spec["tolerance"])
@@ -48,7 +48,7 @@ class BaseTransform(Initializer):
             raise spec.error("stream", f"stream {stream.name!r} pairs {len(rows)} configurations of {a!r} and {b!r} "
                              "whose tips do not span a plane: the transform needs three or more tips off one line")
         seen = tips_a + measurements(ctx, spec)[rows]  # b's tips in a's base frame
-        ctx.set_initial(family.key(0), gtsam.Pose3.Align(seen.T, tips_b.T))
+        ctx.set_initial(base, gtsam.Pose3.Align(seen.T, tips_b.T))
 
     @staticmethod
     def _tip(ctx, robot: str, k: int, convention: str) -> np.ndarray:

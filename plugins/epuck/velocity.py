@@ -17,8 +17,8 @@ motion has covariance
     Sigma = Jr diag((sigma_v dt)^2, 0, (sigma_w dt)^2) Jr^T + diag(0, 0, (sigma_g dt)^2),
 
 which depends on the command only (in the world frame it turns with the heading: the EKF's
-V M V^T of the book's Table 7.2). Consecutive commands compose by the adjoint. Jr's entries divide by
-the turn angle; below SMALL they are replaced by their Taylor series, so a straight line is exact.
+V M V^T of the book's Table 7.2). Consecutive commands compose by the adjoint. Jr is fusionkit.api.se2's
+(its entries' series below a small turn angle make a straight line exact).
 """
 
 from __future__ import annotations
@@ -26,25 +26,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-SMALL = 1e-3  # |turn angle| (rad) below which Jr uses its series (truncation error ~ angle^6 / 5040)
-
-
-def right_jacobian(tau: np.ndarray) -> np.ndarray:
-    """Right Jacobian Jr of the Pose2 exponential at tau = (x, y, theta): Exp(tau + d) ~ Exp(tau) Exp(Jr d)."""
-    x, y, th = (float(a) for a in tau)
-    if abs(th) < SMALL:
-        t2 = th * th
-        A = 1.0 - t2 / 6.0 + t2 * t2 / 120.0              # sin(th) / th
-        B = th / 2.0 - th * t2 / 24.0 + th * t2 * t2 / 720.0  # (1 - cos(th)) / th
-        one_minus_A = th / 6.0 - th * t2 / 120.0           # (1 - A) / th
-        B_over = 0.5 - t2 / 24.0 + t2 * t2 / 720.0         # B / th
-    else:
-        A, B = np.sin(th) / th, (1.0 - np.cos(th)) / th
-        one_minus_A, B_over = (1.0 - A) / th, B / th
-    return np.array([[A, B, x * one_minus_A - y * B_over],
-                     [-B, A, x * B_over + y * one_minus_A],
-                     [0.0, 0.0, 1.0]])
-
+from fusionkit.api import se2
 
 def control_sigmas(v: np.ndarray, omega: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """(N, 3) standard deviations (sigma_v, sigma_w, sigma_g) of the executed controls (alpha: 4 or 6)."""
@@ -56,7 +38,7 @@ def control_sigmas(v: np.ndarray, omega: np.ndarray, alpha: np.ndarray) -> np.nd
 
 def step_covariance(v: float, omega: float, dt: float, sigmas: np.ndarray) -> np.ndarray:
     """Body-frame covariance (3x3, GTSAM's Pose2 tangent) of one command held for dt."""
-    Jr = right_jacobian(np.array([v * dt, 0.0, omega * dt]))
+    Jr = se2.jr(np.array([[v * dt, 0.0, omega * dt]]))[0]
     M = np.diag([(sigmas[0] * dt) ** 2, 0.0, (sigmas[1] * dt) ** 2])
     return Jr @ M @ Jr.T + np.diag([0.0, 0.0, (sigmas[2] * dt) ** 2])
 

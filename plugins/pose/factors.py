@@ -260,7 +260,6 @@ def co_registration_factor(xa: int, base: int, xb: int, z: gtsam.Pose3, noise) -
     return vectorized_factor(CO_REGISTRATION, noise, [xa, base, xb], {"z": z.matrix()[None]})
 
 
-BASE_TRANSFORM = "base_in_{robot}"
 
 
 class CoRegistration(FactorType):
@@ -291,7 +290,7 @@ class CoRegistration(FactorType):
         ka = dict(zip(assoc_a.row, assoc_a.state))
         kb = dict(zip(assoc_b.row, assoc_b.state))
         prior = pose_sigmas(spec["base_sigma"], False) if "base_sigma" in spec.data else None
-        base = ctx.static_variable(b, BASE_TRANSFORM.format(robot=a), POSE3, gtsam.Pose3(), prior)
+        base = ctx.base_transform(b, a, prior)
         z = np.array([p.matrix() for p in poses_from_array(stream.pose_array()[rows])]).reshape(-1, 4, 4)
         keys = [[ctx.pose_key(a, int(ka[row])), base, ctx.pose_key(b, int(kb[row]))] for row in rows]
         times = [max(ctx.state_time(a, int(ka[row])), ctx.state_time(b, int(kb[row]))) for row in rows]

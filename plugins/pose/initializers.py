@@ -7,7 +7,7 @@ import numpy as np
 
 from fusionkit.api import POSE_COLUMNS, Initializer, nearest, poses_from_array, Spec
 
-from .factors import BASE_TRANSFORM, dead_reckoned, poses_at, to_pose2
+from .factors import dead_reckoned, poses_at, to_pose2
 
 
 def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
@@ -126,10 +126,10 @@ class BaseTransform(Initializer):
         z = stream.poses()[0]
         xa = ctx.initial_value(ctx.pose_key(a, int(ka)))
         xb = ctx.initial_value(ctx.pose_key(b, int(kb)))
-        fam = ctx.family(b, BASE_TRANSFORM.format(robot=a))
-        if fam is None:
+        base = ctx.base_transform(b, a, declare=False)
+        if base is None:
             raise spec.error("other", f"no pose.co_registration factor links {a!r} and {b!r}")
-        ctx.set_initial(fam.key(0), xa.compose(z).compose(xb.inverse()))
+        ctx.set_initial(base, xa.compose(z).compose(xb.inverse()))
 
 
 INITIALIZERS = [ScaleFromAbsolute, DeadReckoning, InterpolateAbsolute, BaseTransform]

@@ -10,7 +10,7 @@ import pytest
 from scipy.linalg import expm
 
 from fusionkit_plugins.epuck.model import shipped_layout
-from fusionkit_plugins.epuck.velocity import preintegrate, right_jacobian
+from fusionkit_plugins.epuck.velocity import preintegrate
 from fusionkit_plugins.epuck.walls import box_walls, ray_distances, segments_of
 
 # the published fits, x in cm (mean reading; variance of the reading), typed in again from the table
@@ -115,9 +115,11 @@ def vee(M):
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 4e-4, 1.1e-3, 0.8])
-def test_right_jacobian_series_and_closed_form_equal_gtsams_and_central_differences(angle):
+def test_the_right_jacobian_the_velocity_model_uses_equals_gtsams_and_central_differences(angle):
+    """The e-puck's covariance propagation uses fusionkit.api.se2.jr (series at small angles, closed form above)."""
+    from fusionkit.api import se2
     tau = np.array([0.03, -0.01, angle])
-    J = right_jacobian(tau)
+    J = se2.jr(tau[None])[0]
     h = 1e-6  # Exp(tau)^-1 Exp(tau +- h e) = I +- h hat(Jr e) + O(h^2), the O(h^2) alike: central differences
     E = expm(hat(tau))
     numeric = np.column_stack([vee(np.linalg.solve(E, expm(hat(tau + e)) - expm(hat(tau - e))))
