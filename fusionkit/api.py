@@ -27,7 +27,7 @@ from .graph.vectorized import VectorizedResidual, instance_factor as vectorized_
 from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
                               vector_type)
 from .models.integration import held_intervals
-from .models.planar import differential_drive_twist, unicycle_increment
+from .models.planar import arc_path, differential_drive_twist, unicycle_increment
 from .robots.description import Parameter, RobotDescription, Sensor
 from .robots.checked import load_robot_description
 from .robots.registered import robot_description_data, robot_description_files
@@ -61,7 +61,7 @@ API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      with many variables that share one evaluation read them once per pass)
 # 1.12: BuildContext, the protocol of the `ctx` a plugin receives (ctx.family, robot_of, initial_values, entries,
 #      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API);
-#      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family)
+#      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family); arc_path
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -86,7 +86,7 @@ __all__ = [
     # schema fragments and the standard gravity every family shares
     "NAME_SCHEMA", "POSITIVE_SCHEMA", "NON_NEGATIVE_SCHEMA", "GRAVITY",
     # shared models
-    "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment",
+    "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment", "arc_path",
     "differential_drive_twist",
     # simulator building blocks and the factor contract
     "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",

@@ -26,7 +26,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import se2
+from fusionkit.api import se2, unicycle_increment
 
 def control_sigmas(v: np.ndarray, omega: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """(N, 3) standard deviations (sigma_v, sigma_w, sigma_g) of the executed controls (alpha: 4 or 6)."""
@@ -46,13 +46,11 @@ def step_covariance(v: float, omega: float, dt: float, sigmas: np.ndarray) -> np
 def preintegrate(v: np.ndarray, omega: np.ndarray, dt: np.ndarray, alpha: np.ndarray) -> tuple[gtsam.Pose2, np.ndarray]:
     """The mean body-frame motion of commands (v, omega) each held for its dt, and its covariance."""
     sig = control_sigmas(v, omega, alpha)
-    delta, cov = gtsam.Pose2(), np.zeros((3, 3))
+    cov = np.zeros((3, 3))
     for vk, wk, h, s in zip(np.asarray(v, float), np.asarray(omega, float), np.asarray(dt, float), sig):
-        step = gtsam.Pose2.Expmap(np.array([vk * h, 0.0, wk * h]))
-        Ad = step.inverse().AdjointMap()
+        Ad = gtsam.Pose2.Expmap(np.array([vk * h, 0.0, wk * h])).inverse().AdjointMap()
         cov = Ad @ cov @ Ad.T + step_covariance(vk, wk, h, s)
-        delta = delta.compose(step)
-    return delta, cov
+    return unicycle_increment(np.asarray(v, float), np.asarray(omega, float), np.asarray(dt, float)), cov
 
 
 def sample_motion(pose: np.ndarray, v: float, omega: float, dt: float, alpha: np.ndarray,

@@ -5,12 +5,11 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import Initializer, Spec
+from fusionkit.api import Initializer, Spec, arc_path
 
 from .factors import require_gyro, require_wheels
 from .kinematics import driven_twist, gyro_turns, increments, wheel_column
 from .model import PASSIVE_RADIUS, drive_of
-from .rules import integrate
 
 
 class DeadReckoning(Initializer):
@@ -54,7 +53,7 @@ class DeadReckoning(Initializer):
             forward = drive.nominal[PASSIVE_RADIUS] * passive + drive.passive_offset * turn
         first = states.key(0)
         start = ctx.initial_value(first) if ctx.has_variable(first) else gtsam.Pose2()
-        poses = integrate(forward, turn, np.ones(len(turn)), (start.x(), start.y(), start.theta()))
+        poses = arc_path(forward, turn, np.ones(len(turn)), (start.x(), start.y(), start.theta()))
         for key, (x, y, theta) in zip(states.family.keys(range(len(states))), poses.tolist()):
             if ctx.has_variable(key):
                 ctx.set_initial(key, gtsam.Pose2(x, y, theta))

@@ -2,7 +2,7 @@
 baselines of docs/models/wheels.md#baselines.
 
 Every rule turns per-step wheel-contact speeds (`WheelSteps`: m/s, each held over its interval dt)
-into a forward speed V (m/s) and a turn rate omega (rad/s) per step; `integrate` composes them into
+into a forward speed V (m/s) and a turn rate omega (rad/s) per step; `arc_path` (fusionkit.api) composes them into
 poses (x, y in m, theta in rad; exact arcs). The named functions return the (N + 1, 3) poses of N
 steps, starting at `start`:
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit.api import differential_drive_twist
+from fusionkit.api import arc_path, differential_drive_twist
 
 V_THRES = 0.01        # m/s: V_mid and V_RL "agree" below this
 OMEGA_THRES = 0.05    # rad/s: a wheel-derived turn rate and the gyro "agree" below this
@@ -85,21 +85,9 @@ class WheelSteps:
         return self.passive_speed(self.rl[1])
 
 
-def integrate(v: np.ndarray, omega: np.ndarray, dt: np.ndarray, start=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """(N + 1, 3) poses x, y (m), theta (rad, unwrapped) from `start`: speed v (m/s) and turn rate omega
-    (rad/s) held over each dt (s), composed as exact arcs (Pose2.Expmap of (v dt, 0, omega dt))."""
-    ds, dth = np.asarray(v) * dt, np.asarray(omega) * dt
-    theta = start[2] + np.concatenate([[0.0], np.cumsum(dth)])
-    chord = ds * np.sinc(dth / (2.0 * np.pi))  # ds * sin(dth/2) / (dth/2)
-    mid = theta[:-1] + 0.5 * dth
-    x = start[0] + np.concatenate([[0.0], np.cumsum(chord * np.cos(mid))])
-    y = start[1] + np.concatenate([[0.0], np.cumsum(chord * np.sin(mid))])
-    return np.column_stack([x, y, theta])
-
-
 def odometry(steps: WheelSteps, start=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Plain odometry of the driven wheels: V_RL, omega_RL."""
-    return integrate(*steps.rl, steps.dt, start)
+    return arc_path(*steps.rl, steps.dt, start)
 
 
 def gyrodometry_rates(steps: WheelSteps, omega_thres: float = OMEGA_THRES, reconstruct: bool = False,
@@ -124,7 +112,7 @@ def gyrodometry(steps: WheelSteps, omega_thres: float = OMEGA_THRES, reconstruct
                 d_omega_thres: float = D_OMEGA_THRES, initial_rate: float = 0.0,
                 start=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Poses of gyrodometry (`gyrodometry_rates`)."""
-    return integrate(*gyrodometry_rates(steps, omega_thres, reconstruct, d_omega_thres, initial_rate),
+    return arc_path(*gyrodometry_rates(steps, omega_thres, reconstruct, d_omega_thres, initial_rate),
                      steps.dt, start)
 
 
@@ -142,7 +130,7 @@ def first_version_rates(steps: WheelSteps, v_thres: float = V_THRES):
 
 def first_version(steps: WheelSteps, v_thres: float = V_THRES, start=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Poses of the paper's first version (`first_version_rates`)."""
-    return integrate(*first_version_rates(steps, v_thres), steps.dt, start)
+    return arc_path(*first_version_rates(steps, v_thres), steps.dt, start)
 
 
 def minimal_gyro_rates(steps: WheelSteps, v_thres: float = V_THRES, omega_thres: float = OMEGA_THRES):
@@ -165,7 +153,7 @@ def minimal_gyro_rates(steps: WheelSteps, v_thres: float = V_THRES, omega_thres:
 def minimal_gyro(steps: WheelSteps, v_thres: float = V_THRES, omega_thres: float = OMEGA_THRES,
                  start=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Poses of the paper's minimal-gyro version (`minimal_gyro_rates`)."""
-    return integrate(*minimal_gyro_rates(steps, v_thres, omega_thres), steps.dt, start)
+    return arc_path(*minimal_gyro_rates(steps, v_thres, omega_thres), steps.dt, start)
 
 
 def reconstructed_gyro(prev_omega: float, gyro_change: float, wheel_rates, d_omega_thres: float) -> float:
@@ -231,4 +219,4 @@ def final_version(steps: WheelSteps, v_thres: float = V_THRES, omega_thres: floa
     """Poses of the paper's final algorithm (`final_version_rates`)."""
     v, omega, _ = final_version_rates(steps, v_thres, omega_thres, d_omega_thres, dv_thres, initial_rate,
                                       initial_speed)
-    return integrate(v, omega, steps.dt, start)
+    return arc_path(v, omega, steps.dt, start)

@@ -31,10 +31,9 @@ from __future__ import annotations
 import numpy as np
 
 from fusionkit.api import (NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSE_NOISE_SCHEMA, POSITIVE_SCHEMA as POSITIVE,
-                           Simulator, SourceOutput, Stream, pose_stream, robot_description_data, sample_times)
+                           Simulator, SourceOutput, Stream, arc_path, pose_stream, robot_description_data, sample_times)
 
 from .model import AXLE, GYRO_BIAS, GYRO_SCALE, PASSIVE_OFFSET, PASSIVE_RADIUS, RADIUS, RADIUS_LEFT, RADIUS_RIGHT
-from .rules import integrate
 
 COUNT = {"type": "integer", "minimum": 0}
 SHAPES = ("loop", "figure_eight", "square", "slalom", "random")
@@ -147,7 +146,7 @@ class WheelsSimulator(Simulator):
         slide = params["faults"]["slide"]
         w_true = np.where(np.abs(w_cmd) > slide["turn_rate"], (1 - slide["slip"]) * w_cmd, w_cmd)
         v_true, w_true = np.where(stuck, 0.0, v_cmd), np.where(stuck, 0.0, w_true)
-        poses = integrate(v_true, w_true, dt)
+        poses = arc_path(v_true, w_true, dt)
         radii = {w: np.full(len(t), true[RADIUS[w]]) for w in ("left", "right")}
         change = params["drift"]["change"]
         if change:

@@ -44,7 +44,7 @@ def test_integrate_equals_composed_pose2_exponentials():
     pose = gtsam.Pose2(1.0, 2.0, 0.3)
     for vk, wk, h in zip(v, w, dt):
         pose = pose.compose(gtsam.Pose2.Expmap(np.array([vk * h, 0.0, wk * h])))
-    end = rules.integrate(v, w, dt, (1.0, 2.0, 0.3))[-1]
+    end = rules.arc_path(v, w, dt, (1.0, 2.0, 0.3))[-1]
     np.testing.assert_allclose(end, [pose.x(), pose.y(), pose.theta()], atol=1e-14)
 
 
@@ -52,7 +52,7 @@ def test_integrate_equals_composed_pose2_exponentials():
 def test_fault_free_every_rule_gives_the_true_path_to_1e12(offset):
     v, w = truth()
     clean = steps(v, w, offset)
-    reference = rules.integrate(v, w, clean.dt)
+    reference = rules.arc_path(v, w, clean.dt)
     for poses in (rules.odometry(clean), rules.gyrodometry(clean),
                   rules.gyrodometry(clean, reconstruct=True, initial_rate=w[0]),
                   rules.first_version(clean), rules.minimal_gyro(clean),
@@ -64,7 +64,7 @@ def test_fault_free_every_rule_gives_the_true_path_to_1e12(offset):
 def test_left_wheel_over_reads_minimal_gyro_and_final_take_right_and_middle_exactly(offset):
     """V_mid < V_RL; the gyro agrees with omega_RM only: both rules use right + middle wheel."""
     v, w = truth()
-    faulty, reference = steps(v, w, offset, left=fault(0.05)), rules.integrate(v, w, np.full(N, DT))
+    faulty, reference = steps(v, w, offset, left=fault(0.05)), rules.arc_path(v, w, np.full(N, DT))
     assert exact(rules.minimal_gyro(faulty), reference)
     assert exact(rules.final_version(faulty), reference)
     assert exact(rules.first_version(faulty), reference)  # V_M and a perfect gyro
@@ -76,7 +76,7 @@ def test_left_wheel_under_reads_only_the_final_version_is_exact():
     """V_mid > V_RL: eq. 2 and the minimal-gyro rule assume real speed <= encoder speed and take V_RL;
     the final version tests the 'left wheel under-reads' hypothesis against the gyro."""
     v, w = truth()
-    faulty, reference = steps(v, w, left=fault(-0.05)), rules.integrate(v, w, np.full(N, DT))
+    faulty, reference = steps(v, w, left=fault(-0.05)), rules.arc_path(v, w, np.full(N, DT))
     assert exact(rules.final_version(faulty), reference)
     for rule in (rules.first_version, rules.minimal_gyro):
         assert np.hypot(*(rule(faulty)[-1, :2] - reference[-1, :2])) > 0.005
@@ -86,7 +86,7 @@ def test_passive_wheel_over_reads_final_version_takes_the_driven_wheels_exactly(
     """A bump under the passive wheel: V_mid jumps above V_RL and above the last accepted speed by more
     than dv_thres, so omega_RL (confirmed by the gyro) comes with V_RL."""
     v, w = truth()
-    faulty, reference = steps(v, w, middle=fault(0.05)), rules.integrate(v, w, np.full(N, DT))
+    faulty, reference = steps(v, w, middle=fault(0.05)), rules.arc_path(v, w, np.full(N, DT))
     assert exact(rules.final_version(faulty), reference)
     assert exact(rules.minimal_gyro(faulty), reference)
 
@@ -107,7 +107,7 @@ def test_robot_stuck_while_driving_final_version_stops_with_the_passive_wheel():
     version never suspects the passive wheel of under-reading, so V = V_M = 0 from then on."""
     v, w = np.where(np.arange(N) < 20, 0.25, 0.0), np.zeros(N)
     stuck = steps(v, w, left=0.25 - v, right=0.25 - v)
-    assert exact(rules.final_version(stuck, initial_speed=0.25), rules.integrate(v, w, np.full(N, DT)))
+    assert exact(rules.final_version(stuck, initial_speed=0.25), rules.arc_path(v, w, np.full(N, DT)))
 
 
 def test_offset_gyro_reconstruction_gives_the_true_rate_after_the_first_accepted_step():
@@ -118,7 +118,7 @@ def test_offset_gyro_reconstruction_gives_the_true_rate_after_the_first_accepted
     _, omega, g = rules.final_version_rates(faulty)
     np.testing.assert_allclose(g[1:], w[1:], rtol=0.0, atol=1e-12)
     np.testing.assert_allclose(omega, w, rtol=0.0, atol=1e-12)
-    reference = rules.integrate(v, w, np.full(N, DT))
+    reference = rules.arc_path(v, w, np.full(N, DT))
     assert exact(rules.final_version(faulty), reference)
     raw = rules.gyrodometry(steps(v, w, gyro=w + 0.3))  # the offset gyro always "disagrees"
     assert abs(raw[-1, 2] - reference[-1, 2]) == pytest.approx(0.3 * N * DT, abs=1e-9)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fusionkit.api import arc_path
 from fusionkit_plugins.wheels import rules
 from fusionkit_plugins.wheels.systematic import fit_radii_and_axle, segments, umbmark
 
@@ -26,7 +27,7 @@ def square_return_error(ccw: bool, actual: dict, nominal: dict, n: int = 100) ->
 
     def end(p: dict) -> np.ndarray:
         s_r, s_l = d_r * p["diameter_right"] / 2, d_l * p["diameter_left"] / 2
-        return rules.integrate(0.5 * (s_r + s_l), (s_r - s_l) / p["axle_length"], np.ones(len(d_r)))[-1, :2]
+        return arc_path(0.5 * (s_r + s_l), (s_r - s_l) / p["axle_length"], np.ones(len(d_r)))[-1, :2]
     return end(actual) - end(nominal)
 
 
@@ -62,7 +63,7 @@ def runs_with_truth(rng, r_right=0.0405, r_left=0.0412, axle=0.305, n_runs=4, n=
         diff = rng.uniform(-0.15, 0.15) + 0.1 * np.sin(0.03 * k + rng.uniform(0, 6))
         d_r, d_l = base + diff, base - diff  # rad per step
         s_r, s_l = r_right * d_r, r_left * d_l
-        out.append((d_r, d_l, rules.integrate(0.5 * (s_r + s_l), (s_r - s_l) / axle, np.ones(n))))
+        out.append((d_r, d_l, arc_path(0.5 * (s_r + s_l), (s_r - s_l) / axle, np.ones(n))))
     return out
 
 
