@@ -60,3 +60,43 @@ def test_an_arm_entry_reads_each_variable_once_per_pass_and_linearizes_as_gtsam_
     a, b = ours.jacobian(), theirs.jacobian()
     assert np.abs(np.sort(np.abs(a[0]).ravel()) - np.sort(np.abs(b[0]).ravel())).max() < 1e-9
     assert abs(problem.evaluator().error(values) - problem.graph().error(copy)) < 1e-9 * problem.graph().error(copy)
+
+
+def test_a_vectorized_residual_over_four_variables_is_evaluated_once_per_pass(monkeypatch):
+    """A VectorizedResidual of more than three variables is linearized factor by factor (GTSAM's Python bindings
+    build Jacobian factors of at most three blocks): inside an evaluation pass its N = 20 instances are evaluated
+    in one call, outside one it serves them from the values it read (one call per new values), and both linear
+    systems equal."""
+    from fusionkit.api import SCALAR, VectorizedResidual
+    from fusionkit.graph.vectorized import InstanceCache
+    calls = {"n": 0}
+
+    def weighted_sum(x, data, jacobians):  # e = sum_j w_j x_j - z
+        calls["n"] += 1
+        e = sum(data["w"][:, j] * x[j] for j in range(4))[:, None] - data["z"][:, None]
+        return (e, [data["w"][:, j, None, None] * np.ones((len(e), 1, 1)) for j in range(4)]) if jacobians else e
+    residual = VectorizedResidual("test.sum4", (SCALAR,) * 4, 1, weighted_sum)
+    rng = np.random.default_rng(1)
+    keys = np.array([rng.choice(8, 4, replace=False) for _ in range(20)])
+    cache = InstanceCache(residual, keys, {"w": rng.normal(size=(20, 4)), "z": rng.normal(size=20)})
+    graph = gtsam.NonlinearFactorGraph()
+    for i in range(20):
+        graph.add(cache.factor(i, gtsam.noiseModel.Isotropic.Sigma(1, 0.1)))
+    values = gtsam.Values()
+    for k in range(8):
+        values.insert(k, float(rng.normal()))
+    compared = {"n": 0}  # factors that read their variables to compare them with the kept ones
+    holds = InstanceCache._holds
+    monkeypatch.setattr(InstanceCache, "_holds", lambda self, *a: (compared.__setitem__("n", compared["n"] + 1),
+                                                                  holds(self, *a))[1])
+    with evaluation_pass(values):
+        inside = graph.linearize(values)
+        assert calls["n"] == 1 and compared["n"] == 0
+    outside = graph.linearize(gtsam.Values(values))  # the same numbers in another object: served from the pass's
+    assert calls["n"] == 1 and compared["n"] >= 20
+    moved = gtsam.Values(values)
+    moved.update(0, 5.0)
+    graph.linearize(moved)  # new values outside a pass: one call for all that hold them
+    assert calls["n"] == 2
+    assert np.allclose(inside.jacobian()[0], outside.jacobian()[0]) and np.allclose(inside.jacobian()[1],
+                                                                                    outside.jacobian()[1])

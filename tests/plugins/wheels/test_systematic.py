@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from fusionkit.api import arc_path
-from fusionkit_plugins.wheels import rules
 from fusionkit_plugins.wheels.systematic import fit_radii_and_axle, segments, umbmark
 
 NOMINAL = {"diameter_right": 0.084, "diameter_left": 0.084, "axle_length": 0.2}
