@@ -166,45 +166,53 @@ class InstanceCache:
 
     def factor(self, row: int, noise: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
         """Factor `row` as a gtsam.CustomFactor."""
-        dims = [t.dim for t in self.residual.variables]
-
         def error(this: gtsam.CustomFactor, v: gtsam.Values, H) -> np.ndarray:
             r, jac = self.evaluate(row, v, H is not None)
             for j, block in enumerate(jac or ()):
-                H[j] = np.asarray(block, dtype=float).reshape(self.residual.dim, dims[j])
+                H[j] = block
             return r
 
         return gtsam.CustomFactor(noise, [int(k) for k in self.keys[row]], error)
 
     def evaluate(self, row: int, values: gtsam.Values, jacobians: bool):
-        """(residual (dim,), [Jacobian blocks] or None) of factor `row` at `values`. Inside a pass of fusionkit's
-        evaluator over these very values (pass_token) the first call evaluates all N and the others read their row
-        without reading a variable."""
+        """(residual (dim,), [Jacobian blocks (dim, d_j)] or None) of factor `row` at `values`. Inside a pass of
+        fusionkit's evaluator over these very values (pass_token) the first call evaluates all N (with Jacobians
+        only when the pass linearizes) and the others read their row without reading a variable."""
         token = pass_token(values)
         if token is not None and len(self.keys) > 1:
-            if token is not self.token and all(values.exists(k) for k in self.unique_keys):
-                self._evaluate_all(values)
+            if (token is not self.token or (jacobians and self.jacobians is None)) and \
+                    all(values.exists(k) for k in self.unique_keys):
+                self._evaluate_all(values, jacobians)
                 self.token = token
             if token is self.token:
                 return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
         types = self.residual.variables
         x = [_one(t, t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
-        if len(self.keys) > 1 and not self._holds(row, x) and all(values.exists(k) for k in self.unique_keys):
-            self._evaluate_all(values)
-        if self._holds(row, x):
+        if len(self.keys) > 1 and not self._holds(row, x, jacobians) and \
+                all(values.exists(k) for k in self.unique_keys):
+            self._evaluate_all(values, True)
+        if self._holds(row, x, jacobians):
             return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
         alone = self.residual.evaluate(x, _slice(self.data, row), jacobians)
         r, jac = alone if jacobians else (alone, None)
-        return np.asarray(r, dtype=float)[0], ([J[0] for J in jac] if jacobians else None)
+        return np.asarray(r, dtype=float)[0], ([B[0] for B in self._blocks(jac)] if jacobians else None)
 
-    def _evaluate_all(self, values: gtsam.Values) -> None:
+    def _blocks(self, jac) -> list[np.ndarray]:
+        """Jacobians as (N, dim, d_j) float arrays (what a CustomFactor's H takes, row by row)."""
+        return [np.asarray(J, dtype=float).reshape(-1, self.residual.dim, t.dim)
+                for J, t in zip(jac, self.residual.variables)]
+
+    def _evaluate_all(self, values: gtsam.Values, jacobians: bool) -> None:
         self.held = ValueReader(values).variables(self.residual.variables, self.keys)
-        r, jac = self.residual.evaluate(self.held, self.data, True)
-        self.r, self.jacobians = np.asarray(r, dtype=float).reshape(len(self.keys), -1), jac
+        out = self.residual.evaluate(self.held, self.data, jacobians)
+        r, jac = out if jacobians else (out, None)
+        self.r = np.asarray(r, dtype=float).reshape(len(self.keys), -1)
+        self.jacobians = self._blocks(jac) if jacobians else None
         self.token = None  # kept for these values (held), whichever pass
 
-    def _holds(self, row: int, x: list[np.ndarray]) -> bool:
-        return self.held is not None and all(np.array_equal(h[row], xi[0]) for h, xi in zip(self.held, x))
+    def _holds(self, row: int, x: list[np.ndarray], jacobians: bool = False) -> bool:
+        return self.held is not None and (self.jacobians is not None or not jacobians) and \
+            all(np.array_equal(h[row], xi[0]) for h, xi in zip(self.held, x))
 
 
 def instance_factor(residual: VectorizedResidual, noise: gtsam.noiseModel.Base, keys, data_i: dict[str, np.ndarray]

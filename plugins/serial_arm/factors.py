@@ -6,7 +6,6 @@ the sample index as their time."""
 from __future__ import annotations
 
 from abc import abstractmethod
-from functools import partial
 from pathlib import Path
 
 import gtsam
@@ -14,10 +13,10 @@ import numpy as np
 
 from fusionkit.api import (FactorExample, FactorType, NAME_SCHEMA as NAME, POSE_COLUMNS, POSE_SIGMA_SCHEMA,
                            POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, TOLERANCE_SCHEMA, gaussian, lie, pose_parts,
-                           pose_sigmas)
+                           pose_sigmas, vectorized_factor)
 
-from .evaluator import EntryEvaluator
 from .kinematics import Layout, Parameters, marker_pose
+from .marker_residual import marker_residual
 from .model import arm_of, chain_from, marker_of, tool_frames
 from .urdf import PREFIX, urdf_path
 
@@ -104,15 +103,16 @@ def pose_matrices(rows: np.ndarray) -> np.ndarray:
     return T
 
 
-def marker_factor(noise, keys: list[int], evaluator: EntryEvaluator, i: int) -> gtsam.CustomFactor:
-    """Factor i of an entry's evaluator, on its variables `keys`."""
-    return gtsam.CustomFactor(noise, keys, partial(evaluator.error, i))
+def marker_example(chain, layout: Layout, kind: str, measured: np.ndarray, values: gtsam.Values, sigma: float):
+    """The contract example of one marker factor: keys 0.. of `values` (example_values' order)."""
+    return FactorExample(vectorized_factor(marker_residual(chain, layout, kind), gaussian([sigma] * (
+        3 if kind == "position" else 6)), list(range(values.size())), {"measured": measured[None]}), values)
 
 
 class ArmMeasurement(FactorType):
     """Shared by the marker measurements: one factor per sample at its nearest state."""
 
-    kind = ""             # "pose", "position" or "relative" (EntryEvaluator, identifiability.kinematic_regressor)
+    kind = ""             # "pose", "position" or "relative" (marker_residual, identifiability.kinematic_regressor)
     robot_fields = ("robot",)
     stream_fields = ("stream",)
 
@@ -130,23 +130,22 @@ class ArmMeasurement(FactorType):
 
     @abstractmethod
     def measured(self, stream, rows: np.ndarray, spec: Spec) -> np.ndarray:
-        """What EntryEvaluator compares with, for the stream rows of the samples."""
+        """What the marker residual compares with (its `measured` data), for the stream rows of the samples."""
 
     def build(self, ctx, spec: Spec) -> None:
-        """One factor per sample, all evaluated together by one EntryEvaluator."""
+        """One factor per sample, all evaluated together (one vectorized residual)."""
         robot = spec["robot"]
         chain = entry_arm(ctx.robot(robot), spec).chain
         layout, variables = self.layout(ctx, spec)
-        noise = ctx.noise(self.sigmas(spec), spec)
         ks, rows = self.samples(ctx, spec)
         states = ks.reshape(len(ks), -1)  # relative: pairs; the parameters are those of the later state
         pairs = states.tolist()
         keys = [[ctx.state_key(robot, k) for k in pair] + params
                 for pair, params in zip(pairs, parameter_keys(ctx, robot, variables, [p[-1] for p in pairs]))]
-        evaluator = EntryEvaluator(chain, layout, self.kind, self.measured(ctx.stream(spec["stream"]), rows, spec),
-                                   keys)
-        for i, (pair, key_list) in enumerate(zip(pairs, keys)):
-            ctx.add(marker_factor(noise, key_list, evaluator, i), spec, ctx.state_time(robot, pair[-1]))
+        measured = self.measured(ctx.stream(spec["stream"]), rows, spec)
+        ctx.add_vectorized(marker_residual(chain, layout, self.kind), np.asarray(keys, dtype=np.int64).reshape(
+            len(keys), -1), {"measured": measured}, self.sigmas(spec), spec,
+            [ctx.state_time(robot, pair[-1]) for pair in pairs])
 
     def residual_parts(self, ctx, spec: Spec):
         """A pose (or motion) residual's position and orientation; a position residual is all position."""
@@ -182,8 +181,7 @@ class ToolPose(ArmMeasurement):
         q = rng.uniform(-np.pi, np.pi, chain.n)
         values = example_values(layout, p, q)
         z = marker_pose(chain, layout, q, p)[0]  # Pinocchio's forward kinematics: the batched code must agree
-        evaluator = EntryEvaluator(chain, layout, cls.kind, lie.inverse(z[None]), [list(range(values.size()))])
-        return FactorExample(marker_factor(gaussian([1e-3] * 6), list(range(values.size())), evaluator, 0), values)
+        return marker_example(chain, layout, cls.kind, lie.inverse(z), values, 1e-3)
 
 
 class ToolPosition(ArmMeasurement):
@@ -217,8 +215,7 @@ class ToolPosition(ArmMeasurement):
         q = rng.uniform(-np.pi, np.pi, chain.n)
         values = example_values(layout, p, q)
         z = marker_pose(chain, layout, q, p)[0][:3, 3]
-        evaluator = EntryEvaluator(chain, layout, cls.kind, z[None], [list(range(values.size()))])
-        return FactorExample(marker_factor(gaussian([1e-4] * 3), list(range(values.size())), evaluator, 0), values)
+        return marker_example(chain, layout, cls.kind, z, values, 1e-4)
 
 
 class RelativeToolPose(ArmMeasurement):
@@ -252,10 +249,9 @@ class RelativeToolPose(ArmMeasurement):
         qa, qb = rng.uniform(-np.pi, np.pi, (2, chain.n))
         values = example_values(layout, p, qa, qb)
         z = lie.inverse(marker_pose(chain, layout, qa, p)[0]) @ marker_pose(chain, layout, qb, p)[0]
-        evaluator = EntryEvaluator(chain, layout, cls.kind, lie.inverse(z[None]), [list(range(values.size()))])
         # 1e-2: the motion's residual carries ~1e-15 of rounding, which central differences at 1e-6 turn into
         # ~1e-6 of whitened Jacobian at 1e-3 (the contract's tolerance); the Jacobian is the same
-        return FactorExample(marker_factor(gaussian([1e-2] * 6), list(range(values.size())), evaluator, 0), values)
+        return marker_example(chain, layout, cls.kind, lie.inverse(z), values, 1e-2)
 
 
 class JointEncoders(FactorType):

@@ -46,7 +46,7 @@ def _moved(layout: Layout, p: Parameters, step: np.ndarray) -> Parameters:
 
 def frame_fit(chain, layout: Layout, p: Parameters, q: np.ndarray, measured: np.ndarray, kind: str) -> Parameters:
     """`p` with its base and tool fitted to one entry's samples (joint values q (N, n), `measured` as the entry's
-    EntryEvaluator takes it); `p` itself when the entry has neither, is relative, or no step lowers the cost."""
+    the marker residual takes it); `p` itself when the entry has neither, is relative, or no step lowers the cost."""
     width = (6 if layout.base else 0) + ({"pose3": 6, "point3": 3}.get(layout.tool, 0))
     if kind not in ("position", "pose") or not width:
         return p
