@@ -8,7 +8,7 @@ into a temporary git worktree, imported ahead of the installed package) and once
 compares every number of the two report.json files (estimates, sigmas, evaluation, solver costs; timings and the
 seconds of anything left out). Prints per config the largest relative difference, or why it could not run (a
 config whose external recording is absent fails alike at both); exit code 1 when a difference exceeds the
-tolerance or one side runs where the other fails.
+tolerance (relative; absolute for numbers below 1) or one side runs where the other fails.
 """
 
 from __future__ import annotations
@@ -68,7 +68,8 @@ def run(config: Path, out: Path, path: Path | None) -> tuple[dict[str, float] | 
 
 
 def largest_difference(a: dict[str, float], b: dict[str, float]) -> tuple[float, str]:
-    """(largest relative difference, where) of two reports' numbers; inf where their key paths differ."""
+    """(largest difference, where) of two reports' numbers, relative to the larger of the two or to 1 when both are
+    below 1; inf where their key paths differ."""
     if a.keys() != b.keys():
         only = sorted(a.keys() ^ b.keys())
         return math.inf, f"numbers only on one side: {', '.join(only[:3])}{' ...' if len(only) > 3 else ''}"
@@ -77,7 +78,7 @@ def largest_difference(a: dict[str, float], b: dict[str, float]) -> tuple[float,
         y = b[key]
         if math.isnan(x) and math.isnan(y) or x == y:
             continue
-        d = abs(x - y) / max(abs(x), abs(y), 1e-300)
+        d = abs(x - y) / max(abs(x), abs(y), 1.0)  # relative, absolute below 1 (a bias near 0 is not 100 % off)
         if d > worst:
             worst, where = d, f"{key}: {x!r} vs {y!r}"
     return worst, where
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
                 worst, where = largest_difference(before, after)
                 bad = worst > args.tolerance
                 failed |= bad
-                print(f"{config.stem}: {len(after)} numbers, largest relative difference {worst:.3g}"
+                print(f"{config.stem}: {len(after)} numbers, largest difference {worst:.3g}"
                       + (f" ({where})" if worst else "") + (" EXCEEDS the tolerance" if bad else ""))
         finally:
             subprocess.run(["git", "worktree", "remove", "--force", str(Path(tmp) / "tree")], cwd=REPO,
