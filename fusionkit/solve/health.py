@@ -38,7 +38,7 @@ import numpy as np
 from ..graph.builder import Problem
 from ..graph.keys import STATE
 from .result import SolveWarning
-from . import chi_square
+from .chi_square import quantile
 
 WINDOW_FACTOR = 10.0  # a window's chi2/dof this many times the median window's (at least 1) fails
 WINDOW_P = 1e-6  # ... when also beyond the chi-square's 1 - WINDOW_P quantile for its dof
@@ -60,7 +60,7 @@ class Revision:
 
     @property
     def jump(self) -> bool:
-        return self.d2 > chi_square.quantile(1 - JUMP_P, self.dim)
+        return self.d2 > quantile(1 - JUMP_P, self.dim)
 
 
 @dataclass
@@ -171,7 +171,7 @@ class Window:
 
     @property
     def beyond_chance(self) -> bool:
-        return self.chi2 > chi_square.quantile(1 - WINDOW_P, self.dof)
+        return self.chi2 > quantile(1 - WINDOW_P, self.dof)
 
 
 def window_fit(problem: Problem, values: gtsam.Values, length: float,
@@ -296,7 +296,7 @@ def _lost_track(problem: Problem, values: gtsam.Values, windows: list[Window], l
         if not w.beyond_chance:
             continue
         after = refit.get((w.start, w.end))
-        if after is None or (w.chi2 - after.chi2 > chi_square.quantile(1 - WINDOW_P, w.dof)
+        if after is None or (w.chi2 - after.chi2 > quantile(1 - WINDOW_P, w.dof)
                              and w.ratio > WINDOW_FACTOR * max(1.0, after.ratio)):
             lost.append((w, after))
     if not lost:

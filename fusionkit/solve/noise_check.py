@@ -22,7 +22,7 @@ from ..graph.builder import Problem
 from .health import WINDOW_P as P  # the chi-square's tail probability beyond which the sigmas are judged wrong
 from .noise_scales import EntryFit, redundancies
 from .result import SolveWarning
-from . import chi_square
+from .chi_square import quantile
 
 VARIANCE_FACTOR = 2.0  # chi2/dof beyond it or below its inverse (and beyond chance) is judged
 MIN_REDUNDANCY = 0.5  # an entry with less redundancy (a prior the data barely test) is not named
@@ -38,18 +38,18 @@ def noise_check(problem: Problem, values: gtsam.Values, chi2_total: float, dof: 
     if dof <= 0 or settings["a_posteriori_sigmas"] or settings["type"] == "fixed_lag":
         return []
     per_dof = chi2_total / dof
-    low, high = chi_square.quantile(P, dof), chi_square.quantile(1 - P, dof)
+    low, high = quantile(P, dof), quantile(1 - P, dof)
     if low <= chi2_total <= high or per_dof > settings["max_cost_ratio"]:
         return []
     if 1 / VARIANCE_FACTOR <= per_dof <= VARIANCE_FACTOR or _robust(problem):  # the scan of every factor last
         return []
     over = bool(chi2_total > high)
     times = np.sqrt(per_dof) if over else 1 / np.sqrt(max(per_dof, 1e-300))
-    quantile = f"{'above' if over else 'below'} its {'1 - ' if over else ''}{P:g} quantile for {dof} degrees of freedom"
+    beyond = f"{'above' if over else 'below'} its {'1 - ' if over else ''}{P:g} quantile for {dof} degrees of freedom"
     scatter = (f"the residuals scatter about {times:.3g} times {'more' if over else 'less'} than the sigmas say, so "
                f"the reported sigmas are that much too {'small' if over else 'large'}"
                + (" (or the model misses an effect)" if over else ""))
-    text = (f"chi-square per degree of freedom {per_dof:.3g} is far {'above' if over else 'below'} 1 ({quantile}): "
+    text = (f"chi-square per degree of freedom {per_dof:.3g} is far {'above' if over else 'below'} 1 ({beyond}): "
             f"{scatter}; where it shows, chi-square per redundancy by entry (about 1 expected; an entry's residuals also "
             f"carry the misfit of what it is measured against): "
             f"{_entries_text(problem, values, settings, over)}; check those sigmas, or set "
@@ -79,4 +79,4 @@ def _robust(problem: Problem) -> bool:
 
 
 def _beyond(fit: EntryFit, over: bool) -> bool:
-    return fit.chi2 > chi_square.quantile(1 - P, fit.redundancy) if over else fit.chi2 < chi_square.quantile(P, fit.redundancy)
+    return fit.chi2 > quantile(1 - P, fit.redundancy) if over else fit.chi2 < quantile(P, fit.redundancy)

@@ -26,7 +26,7 @@ import numpy as np
 from ..graph.builder import Problem
 from .rank import index_ranges
 from .result import SolveWarning
-from . import chi_square
+from .chi_square import quantile, survival
 
 ALPHA = 1e-3  # the chance that any of the tested priors is flagged when all agree with the data
 DATA_SHARE = 0.01  # a direction where the data carry less of the information is determined by the prior alone
@@ -78,9 +78,9 @@ def prior_check(problem: Problem, values: gtsam.Values, covariances: dict[int, n
     tests = prior_tests(problem, values, covariances)
     judged = [t for t in tests if t.dof]
     warnings = []
-    conflicts = [t for t in judged if t.statistic > chi_square.quantile(1 - ALPHA / len(judged), t.dof)]
+    conflicts = [t for t in judged if t.statistic > quantile(1 - ALPHA / len(judged), t.dof)]
     if conflicts:
-        conflicts.sort(key=lambda t: chi_square.survival(t.statistic, t.dof))
+        conflicts.sort(key=lambda t: survival(t.statistic, t.dof))
         text = "; ".join(_conflict_text(problem, values, covariances, t) for t in conflicts)
         warnings.append(SolveWarning("prior_conflict", (
             f"the data pull {len(conflicts)} of {len(judged)} parameters beyond chance from their priors (beyond the "
