@@ -7,7 +7,7 @@ squares. No gyro and no passive wheel.
 `graph_calibration` calibrates the radii and axle length on them with fusionkit (wheels plugin);
 `path_errors` is the reference implementation's error measure (position error along the path and at
 the end, dead reckoning from the true start pose); `least_squares` and `umbmark_parameters` are the
-classic baselines (plugins/wheels/systematic.py). The published figures are in the dataset's
+classic baselines (research/systematic.py). The published figures are in the dataset's
 reference_results.csv.
 """
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusionkit_plugins.wheels.systematic import WheelParameters, fit_radii_and_axle, segments, umbmark
+from research.systematic import WheelParameters, fit_radii_and_axle, segments, umbmark
 
 from research.external_data import external_data
 
@@ -194,7 +194,7 @@ def held_out(session: Session, fit) -> tuple[float, float]:
 
 
 def least_squares(session: Session, length: int | None = None) -> WheelParameters:
-    """Two-stage least squares (plugins/wheels/systematic.py) on the session's runs, each run one segment
+    """Two-stage least squares (research/systematic.py) on the session's runs, each run one segment
     (Antonelli et al.'s experiments), or cut into segments of `length` cycles."""
     segs = []
     for r in session.runs:

@@ -1,4 +1,4 @@
-"""Systematic-calibration baselines (plugins/wheels/systematic.py) on hand-built runs with known
+"""Systematic-calibration baselines (benchmarks/research/systematic.py) on hand-built runs with known
 wheel diameters and axle length: UMBmark's correction factors, and the two-stage least-squares fit
 of radii and axle length from true poses."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fusionkit.api import arc_path
-from fusionkit_plugins.wheels.systematic import fit_radii_and_axle, segments, umbmark
+from research.systematic import fit_radii_and_axle, segments, umbmark
 
 NOMINAL = {"diameter_right": 0.084, "diameter_left": 0.084, "axle_length": 0.2}
 ACTUAL = {"diameter_right": 0.0843, "diameter_left": 0.0838, "axle_length": 0.2025}
