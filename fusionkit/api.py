@@ -27,6 +27,7 @@ from .graph.vectorized import VectorizedResidual, instance_factor as vectorized_
 from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCALAR, VELOCITY3, VarType,
                               vector_type)
 from .models.integration import held_intervals
+from .models.cable_robot import CableRobot, cable_robot
 from .models.planar import arc_path, differential_drive_twist, unicycle_increment
 from .robots.description import Parameter, RobotDescription, Sensor
 from .robots.checked import load_robot_description
@@ -61,7 +62,8 @@ API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      with many variables that share one evaluation read them once per pass)
 # 1.12: BuildContext, the protocol of the `ctx` a plugin receives (ctx.family, robot_of, initial_values, entries,
 #      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API);
-#      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family); arc_path
+#      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family); arc_path;
+#      the `cdpr` robot model is the core's, read through CableRobot / cable_robot by every cable family
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -85,6 +87,8 @@ __all__ = [
     "Association", "nearest", "TOLERANCE_SCHEMA", "interpolate_poses", "segment_ids",
     # schema fragments and the standard gravity every family shares
     "NAME_SCHEMA", "POSITIVE_SCHEMA", "NON_NEGATIVE_SCHEMA", "GRAVITY",
+    # the cable robot description every cable family reads (model `cdpr`)
+    "CableRobot", "cable_robot",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment", "arc_path",
     "differential_drive_twist",

@@ -24,6 +24,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.data.builtin_sources",
     "fusionkit.data.static_segments",
     "fusionkit.robots.generic",
+    "fusionkit.models.cable_robot",
     "fusionkit.time_offset.guess",
     "fusionkit.sweep",
     "fusionkit.crossval.command",

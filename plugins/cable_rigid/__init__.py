@@ -1,12 +1,11 @@
-"""Built-in `cable_rigid` plugin: the cdpr robot model, rigid/elastic cable factors, pulley
-pseudo-measurements (models: docs/models/cable_rigid.md)."""
+"""Built-in `cable_rigid` plugin: rigid/elastic cable factors on the core's `cdpr` robot model (fusionkit.api's
+cable_robot), pulley pseudo-measurements (models: docs/models/cable_rigid.md)."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
 from .commands import COMMANDS
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
-from .model import CdprModel
 from .simulator import SIMULATORS
 
 FUSIONKIT_API = "1.12"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
@@ -15,11 +14,6 @@ FUSIONKIT_API = "1.12"  # the fusionkit plugin API this family is written for (f
 @hookimpl
 def register_factor_types():
     return FACTOR_TYPES
-
-
-@hookimpl
-def register_robot_models():
-    return [CdprModel]
 
 
 @hookimpl

@@ -8,13 +8,12 @@ from functools import partial
 import gtsam
 import numpy as np
 
-from fusionkit.api import (FactorExample, FactorType, POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, Stream,
+from fusionkit.api import (cable_robot, FactorExample, FactorType, POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, Stream,
                            TOLERANCE_SCHEMA, gaussian, parameter_indices, range_factor, vectorized_factor)
 
 LENGTH_PART = [ResidualPart("length", "m", (0,))]  # a cable-length residual (m)
 
 from .kinematics import forward_kinematics
-from .model import cable_robot
 from .pulley import pulley_cables
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
 
@@ -28,7 +27,7 @@ def length_columns(spec: Spec, n: int) -> list[str]:
 
 def check_cdpr(spec: Spec, scope) -> int:
     """The robot must be a cdpr; returns its number of cables."""
-    return len(scope.require_model(spec, "robot", "cdpr").extra["cables"]["attachments"])
+    return cable_robot(scope.require_model(spec, "robot", "cdpr")).n
 
 
 def check_cables(spec: Spec, key: str, n: int) -> None:
@@ -179,7 +178,7 @@ class ElasticCableLength(FactorType):
         n = check_cdpr(spec, scope)
         scope.require_states(spec, "robot", "pose3")
         check_cables(spec, "cables", n)
-        if "stiffness_EA" not in scope.robots[spec["robot"]].extra["cables"]:
+        if cable_robot(scope.robots[spec["robot"]]).stiffness_EA is None:
             raise spec.error("robot", f"robot {spec['robot']!r} has no cables.stiffness_EA; elastic cables need it")
         scope.require_values(spec, "robot", "offset", "to scale the tension noise by the cable length")
         scope.require_columns(spec, "stream", tuple(length_columns(spec, n)))

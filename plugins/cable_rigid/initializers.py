@@ -27,11 +27,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import (Initializer, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSITIVE_SCHEMA as POSITIVE, Spec,
+from fusionkit.api import (cable_robot, Initializer, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS, POSITIVE_SCHEMA as POSITIVE, Spec,
                            TOLERANCE_SCHEMA, fit_range_origin, interpolate_poses, nearest)
 
 from .factors import check_cdpr, length_columns
-from .model import cable_robot
 from .monte_carlo import CONVERGED_SPREAD, Calibration, calibrate
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}

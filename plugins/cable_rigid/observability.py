@@ -64,9 +64,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusionkit.api import nearest, Spec
+from fusionkit.api import cable_robot, nearest, Spec
 
-from .model import cable_robot
 
 AXES = ("x", "y", "z")
 ADVICE = {"x": "x", "y": "y", "z": "z (up/down)"}

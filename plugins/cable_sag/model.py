@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusionkit.api import GRAVITY, RobotDescription, Spec, robot_description_data
+from fusionkit.api import RobotDescription, Spec, cable_robot, robot_description_data
 
 from .statics import N_CABLES, SagRobot
 
@@ -17,7 +17,7 @@ REFERENCE = {"type": "integer", "minimum": 0, "default": 0}  # the reference cab
 
 def cable_count(spec: Spec, scope) -> int:
     """The entry's robot must be a `cdpr` (the cable robot model); its number of cables."""
-    return len(scope.require_model(spec, "robot", "cdpr").extra["cables"]["attachments"])
+    return cable_robot(scope.require_model(spec, "robot", "cdpr")).n
 
 
 def length_columns(spec: Spec, n: int) -> list[str]:
@@ -25,26 +25,27 @@ def length_columns(spec: Spec, n: int) -> list[str]:
     return list(spec.get("columns") or [f"l{i}" for i in range(n)])
 
 
-def sag_robot_from(extra: dict, reference: int = 0) -> SagRobot:
-    cables, ee = extra["cables"], extra["end_effector"]
-    g = float(extra.get("gravity", GRAVITY))  # the description's: the weight it was given, exactly
-    return SagRobot(np.asarray(cables["attachments"], float), np.asarray(ee.get("com", [0, 0, 0]), float),
-                    g * float(ee["mass"]), float(cables["weight_per_length"]), reference)
+def sag_robot_from(extra: dict | RobotDescription, reference: int = 0) -> SagRobot:
+    """The statics parameters of a `cdpr` description (its CableRobot; the weight from the mass with the
+    description's own gravity: the weight it was given, exactly)."""
+    robot = cable_robot(extra)
+    return SagRobot(robot.attachments, robot.com, robot.gravity * float(robot.mass), float(robot.weight_per_length),
+                    reference)
 
 
 def sag_robot(desc: RobotDescription, reference: int = 0) -> SagRobot:
-    return sag_robot_from(desc.extra, reference)
+    return sag_robot_from(desc, reference)
 
 
 def check_sag_robot(spec: Spec, scope, n: int) -> None:
     """Four cables, a cable weight, an end-effector mass, a valid reference cable."""
-    extra = scope.robots[spec["robot"]].extra
+    robot = cable_robot(scope.robots[spec["robot"]])
     if n != N_CABLES:
         raise spec.error("robot", f"the sag statics solve for a 4-cable suspended robot; {spec['robot']!r} has {n}")
-    if "weight_per_length" not in extra["cables"]:
+    if robot.weight_per_length is None:
         raise spec.error("robot", f"robot {spec['robot']!r} has no cables.weight_per_length (N/m) or "
                          "cables.mass_per_length (kg/m); sagging cables need it")
-    if "mass" not in extra.get("end_effector", {}):
+    if robot.mass is None:
         raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg) or end_effector.weight "
                          "(N); the statics need it")
     if spec["reference"] >= n:

@@ -1,4 +1,5 @@
-"""The `cdpr` robot model: a cable-driven parallel robot with n cables.
+"""The `cdpr` robot model, shared by every cable family (the rigid and the sagging cables): a cable-driven
+parallel robot with n cables, and its typed reading (`CableRobot`, public as fusionkit.api.cable_robot).
 
 Model keys of the description (besides frames, sensors, parameters):
 
@@ -28,14 +29,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fusionkit.api import GRAVITY, Lines, Points, RobotDescription, RobotModel
+from ..components import RobotModel
+from ..config.fragments import GRAVITY
+from ..hookspecs import hookimpl
+from ..robots.description import RobotDescription
+from ..view.shapes import Lines, Points
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 
 
 @dataclass(frozen=True)
 class CableRobot:
-    """Geometry and physics of a CDPR read from a validated description."""
+    """Geometry and physics of a CDPR read from a validated description: attachments (m), EA (N), cable weight per
+    metre (N/m), end-effector mass (kg) and centre of mass (m), pulley radius (m), swivel axis, gravity (m/s^2)."""
 
     attachments: np.ndarray  # (n, 3) b_i in the end-effector frame
     stiffness_EA: float | None
@@ -44,19 +50,21 @@ class CableRobot:
     com: np.ndarray
     pulley_radius: float = 0.0
     swivel_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    gravity: float = GRAVITY
 
     @property
     def n(self) -> int:
         return len(self.attachments)
 
 
-def cable_robot(desc: RobotDescription) -> CableRobot:
-    cables, ee = desc.extra["cables"], desc.extra.get("end_effector", {})
+def cable_robot(desc: RobotDescription | dict) -> CableRobot:
+    """The CableRobot of a checked `cdpr` description (or of its model keys, a dict with `cables`, ...)."""
+    extra = desc if isinstance(desc, dict) else desc.extra
+    cables, ee = extra["cables"], extra.get("end_effector", {})
     return CableRobot(np.asarray(cables["attachments"], float), cables.get("stiffness_EA"),
                       cables.get("weight_per_length"), ee.get("mass"), np.asarray(ee.get("com", [0, 0, 0]), float),
-                      float(cables.get("pulley_radius", 0.0)), np.asarray(cables.get("swivel_axis", [0, 0, 1]), float))
-
-
+                      float(cables.get("pulley_radius", 0.0)), np.asarray(cables.get("swivel_axis", [0, 0, 1]), float),
+                      float(extra.get("gravity", GRAVITY)))
 
 
 def store_as_mass_and_weight(desc: RobotDescription) -> None:
@@ -121,3 +129,8 @@ class CdprModel(RobotModel):
             if param.vartype.name != vartype or param.count != n or not param.indexed:
                 raise desc.error(("parameters", name), f"expected a {vartype} with `values:` for each of the "
                                  f"{n} cables; got {param.count} {param.vartype.name} value(s)")
+
+
+@hookimpl
+def register_robot_models():
+    return [CdprModel]
