@@ -45,25 +45,25 @@ def parameter_axes(layout: Layout, variables: list, desc, chain) -> list[tuple]:
     roles = ["base"] * layout.base + ["tool"] * bool(layout.tool) + ["offset"] * len(layout.offsets) + \
         ["placement"] * len(layout.placements) + ["compliance"] * len(layout.compliances) + \
         ["mass_compliance"] * len(layout.mass_compliances)
+    joint = [None] * (layout.base + bool(layout.tool)) + list(layout.offsets) + [j for j, _ in layout.placements] \
+        + list(layout.compliances) + list(layout.mass_compliances)  # each variable's joint
+    group_axes = [None] * (layout.base + bool(layout.tool) + len(layout.offsets)) + [a for _, a in layout.placements]
     out = []
     for p, (role, (name, index)) in enumerate(zip(roles, variables)):
         vt = desc.parameters[name].vartype.name
+        j = joint[p]
         if role in ("base", "tool"):
             labels = AXIS_NAMES if vt == "pose3" else ("tx", "ty", "tz")
             axes = [(a, f".{lab}", "rad" if lab[0] == "r" else "m") for a, lab in enumerate(labels)]
         elif role == "offset":
-            j = layout.offsets[p - layout.base - bool(layout.tool)]
             axes = [(0, "", "m" if chain.prismatic[j] else "rad")]
         elif role == "compliance":
-            j = layout.compliances[p - len(roles) + len(layout.mass_compliances) + len(layout.compliances)]
             axes = [(0, "", "m/N" if chain.prismatic[j] else "rad/(N m)")]
         elif role == "mass_compliance":
-            j = layout.mass_compliances[p - len(roles) + len(layout.mass_compliances)]
             unit = "m kg/N" if chain.prismatic[j] else "rad kg/(N m)"
             axes = [(a, f".{link}", unit) for a, (link, *_) in enumerate(layout.lumped)]
         else:
-            j, group_axes = layout.placements[p - layout.base - bool(layout.tool) - len(layout.offsets)]
-            axes = [(a, f".{AXIS_NAMES[g]}", "rad" if g < 3 else "m") for a, g in enumerate(group_axes)]
+            axes = [(a, f".{AXIS_NAMES[g]}", "rad" if g < 3 else "m") for a, g in enumerate(group_axes[p])]
         out.append((role, name, index, axes))
     return out
 

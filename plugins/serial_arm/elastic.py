@@ -18,11 +18,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import yaml
 
 from .chain import Coupling, SerialChain
 from .kinematics import Layout, Parameters, deflected
+from .urdf import root_link
 
 FORMAT = "fusionkit serial_arm compliances 1"
 
@@ -55,7 +58,7 @@ def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, pay
     couplings = tuple(Coupling(c["joint"], tuple((k, float(v)) for k, v in c["of"].items()), float(c["offset"]))
                       for c in doc["couplings"])
     urdf = path.parent / doc["urdf"]
-    chain = SerialChain.from_urdf(urdf, _root(urdf), tuple(doc["frames"]), doc["joints"], couplings,
+    chain = SerialChain.from_urdf(urdf, root_link(ET.parse(urdf).getroot()), tuple(doc["frames"]), doc["joints"], couplings,
                                   tuple(doc["locked"].items()))
     chain = chain.for_tool(frame or doc["frames"][0])
     chain.gravity = np.asarray(doc["gravity"], float)
@@ -71,11 +74,3 @@ def deflected_pose(compliance_file: str | Path, q, frame: str | None = None, pay
     q_eff, _, _, _ = deflected(chain, layout, np.atleast_2d(np.asarray(q, float)), p)
     T = np.array([chain.flange(qi).T for qi in q_eff])
     return T[0] if single else T
-
-
-def _root(urdf: Path) -> str:
-    """The URDF's root link (the measurement frame of an exported file)."""
-    import xml.etree.ElementTree as ET
-    robot = ET.parse(urdf).getroot()
-    children = {j.find("child").get("link") for j in robot.findall("joint")}
-    return next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)

@@ -27,7 +27,7 @@ from .factors import entry_layout
 from .kinematics import joint_deltas, parameters_of
 from .elastic import compliance_document
 from .model import arm_of, couplings_of, tool_frames
-from .urdf import urdf_path
+from .urdf import root_link, urdf_path
 
 MEASUREMENT_FRAME = "measurement_frame"  # the new root link: the frame the tracker measures in
 MARKER = "marker"                        # the new link at the marker
@@ -98,8 +98,7 @@ def calibrated_urdf(text: str, chain: SerialChain, joint_errors: dict[int, tuple
         element = joints[chain.model.names[jid]]
         twist = chain.unit_twist(jid)
         set_origin(element, origin_matrix(element) @ lie.exp(delta) @ lie.exp(dq * twist))
-    children = {j.find("child").get("link") for j in joints.values()}
-    root = next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
+    root = root_link(robot)
     taken = links | set(joints)
     meas = _free(MEASUREMENT_FRAME, taken)
     taken.add(meas)

@@ -32,14 +32,16 @@ def entry_layout(arm, spec: Spec, tool_type: str, base: bool = True) -> tuple[La
     variables: list[tuple[str, int | None]] = [(base_name, None)] if base_name else []
     variables += [(tool_name, None)] if tool_name else []
     active = set(arm.chain.active)
-    offsets = tuple(j for g in arm.offsets for j in g.joints if j in active)
-    variables += [(g.parameter, i) for g in arm.offsets for i, j in enumerate(g.joints) if j in active]
-    placements = tuple((j, g.axes) for g in arm.placements for j in g.joints if j in active)
-    variables += [(g.parameter, i) for g in arm.placements for i, j in enumerate(g.joints) if j in active]
-    compliances = tuple(j for g in arm.compliances for j in g.joints if j in active)
-    variables += [(g.parameter, i) for g in arm.compliances for i, j in enumerate(g.joints) if j in active]
-    mass_compliances = tuple(j for g in arm.mass_compliances for j in g.joints if j in active)
-    variables += [(g.parameter, i) for g in arm.mass_compliances for i, j in enumerate(g.joints) if j in active]
+
+    def kept(groups, element=lambda group, j: j) -> tuple:
+        """The groups' elements whose joint moves the tool: their layout entries, and their variables added."""
+        picked = [(g, i, j) for g in groups for i, j in enumerate(g.joints) if j in active]
+        variables.extend((g.parameter, i) for g, i, _ in picked)
+        return tuple(element(g, j) for g, _, j in picked)
+    offsets = kept(arm.offsets)
+    placements = kept(arm.placements, lambda g, j: (j, g.axes))
+    compliances = kept(arm.compliances)
+    mass_compliances = kept(arm.mass_compliances)
     return Layout(bool(base_name), tool_type if tool_name else "", offsets, placements, compliances,
                   arm.payload if compliances else (), mass_compliances, arm.lumped if mass_compliances else ()), \
         variables

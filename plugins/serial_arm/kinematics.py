@@ -60,23 +60,30 @@ class Parameters:
     mass_compliances: list[np.ndarray] = field(default_factory=list)
 
 
-def parameters_of(layout: Layout, values: list) -> Parameters:
-    """The layout's Parameters from its variables' values (Pose3, point, float, vector), in key order."""
+def parameters_from_arrays(layout: Layout, x: list) -> Parameters:
+    """The layout's Parameters from its variables in array form, in key order: a pose (4, 4), a point (3,) (made a
+    pose), a scalar, a vector; each may carry a leading axis N (one value per sample)."""
     p, i = Parameters(), 0
     if layout.base:
-        p.base, i = values[0].matrix(), 1
-    if layout.tool == "pose3":
-        p.tool = values[i].matrix()
+        p.base, i = x[0], 1
+    if layout.tool == "point3":
+        p.tool = np.zeros(np.shape(x[i])[:-1] + (4, 4))
+        p.tool[..., :3, :3], p.tool[..., :3, 3], p.tool[..., 3, 3] = np.eye(3), x[i], 1.0
     elif layout.tool:
-        p.tool = np.eye(4)
-        p.tool[:3, 3] = values[i]
+        p.tool = x[i]
     i += bool(layout.tool)
-    p.offsets = np.array(values[i:i + len(layout.offsets)], float)
-    i += len(layout.offsets)
-    p.placements = [np.asarray(v, float) for v in values[i:i + len(layout.placements)]]
-    i += len(layout.placements)
-    p.compliances = np.array(values[i:i + len(layout.compliances)], float)
-    p.mass_compliances = [np.asarray(v, float) for v in values[i + len(layout.compliances):]]
+    groups = []
+    for count in (len(layout.offsets), len(layout.placements), len(layout.compliances), len(layout.mass_compliances)):
+        groups.append(list(x[i:i + count]))
+        i += count
+    p.offsets, p.placements, p.compliances, p.mass_compliances = groups
+    return p
+
+
+def parameters_of(layout: Layout, values: list) -> Parameters:
+    """The layout's Parameters from its variables' values (Pose3, point, float, vector), in key order."""
+    p = parameters_from_arrays(layout, [v.matrix() if hasattr(v, "matrix") else np.asarray(v, float) for v in values])
+    p.offsets, p.compliances = np.array(p.offsets, float), np.array(p.compliances, float)
     return p
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from fusionkit.api import POINT3, POSE3, SCALAR, VectorizedResidual, vector_type
 
 from . import batch
-from .kinematics import Layout, Parameters
+from .kinematics import Layout, parameters_from_arrays
 
 KINDS = ("pose", "position", "relative")
 
@@ -34,27 +34,6 @@ def shared(a: np.ndarray) -> np.ndarray:
     return a[0] if len(a) > 1 and (a == a[0]).all() else a
 
 
-def parameters(layout: Layout, x: list[np.ndarray]) -> Parameters:
-    """The layout's Parameters from its variables in array form (a leading axis N each; a value all samples share
-    passed once)."""
-    x = [shared(a) for a in x]
-    out, p = Parameters(), 0
-    if layout.base:
-        out.base, p = x[0], 1
-    if layout.tool == "point3":
-        tool = np.zeros(np.shape(x[p])[:-1] + (4, 4))
-        tool[..., :3, :3], tool[..., :3, 3], tool[..., 3, 3] = np.eye(3), x[p], 1.0
-        out.tool, p = tool, p + 1
-    elif layout.tool:
-        out.tool, p = x[p], p + 1
-    groups = []
-    for count in (len(layout.offsets), len(layout.placements), len(layout.compliances), len(layout.mass_compliances)):
-        groups.append(list(x[p:p + count]))
-        p += count
-    out.offsets, out.placements, out.compliances, out.mass_compliances = groups
-    return out
-
-
 def marker_residual(chain, layout: Layout, kind: str) -> VectorizedResidual:
     """The residual of an entry's marker factors: a 6-D pose (Log(z^-1 T)), a 3-D position (t(T) - z), or the
     motion between two configurations (Log(z^-1 T_a^-1 T_b))."""
@@ -62,7 +41,7 @@ def marker_residual(chain, layout: Layout, kind: str) -> VectorizedResidual:
     joints = 2 if kind == "relative" else 1
 
     def function(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
-        p = parameters(layout, x[joints:])
+        p = parameters_from_arrays(layout, [shared(a) for a in x[joints:]])
         if kind == "relative":
             a = batch.marker_poses(chain, layout, x[0], p, jacobians)
             b = batch.marker_poses(chain, layout, x[1], p, jacobians)

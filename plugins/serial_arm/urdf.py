@@ -3,6 +3,7 @@ package `example-robot-data` (`example-robot-data:ur10`, or a path inside its `r
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from importlib import metadata
 from pathlib import Path
 
@@ -40,3 +41,9 @@ def urdf_path(value: str, base: Path) -> Path:
     if not file.is_file():
         raise FileNotFoundError(f"URDF file not found: {file}")
     return file
+
+
+def root_link(robot: ET.Element) -> str:
+    """The name of the root link of a parsed URDF `<robot>`: the one link no joint has as its child."""
+    children = {j.find("child").get("link") for j in robot.findall("joint")}
+    return next(link.get("name") for link in robot.findall("link") if link.get("name") not in children)
