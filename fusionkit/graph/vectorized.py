@@ -185,17 +185,21 @@ class InstanceCache:
                 self._evaluate_all(values, jacobians)
                 self.token = token
             if token is self.token:
-                return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
+                return self._row(row, jacobians)
         types = self.residual.variables
         x = [_one(t, t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
         if len(self.keys) > 1 and not self._holds(row, x, jacobians) and \
                 all(values.exists(k) for k in self.unique_keys):
             self._evaluate_all(values, True)
         if self._holds(row, x, jacobians):
-            return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
+            return self._row(row, jacobians)
         alone = self.residual.evaluate(x, _slice(self.data, row), jacobians)
         r, jac = alone if jacobians else (alone, None)
         return np.asarray(r, dtype=float)[0], ([B[0] for B in self._blocks(jac)] if jacobians else None)
+
+    def _row(self, row: int, jacobians: bool):
+        """Factor `row`'s kept residual and, when asked, Jacobian blocks."""
+        return self.r[row], ([J[row] for J in self.jacobians] if jacobians else None)
 
     def _blocks(self, jac) -> list[np.ndarray]:
         """Jacobians as (N, dim, d_j) float arrays (what a CustomFactor's H takes, row by row)."""
