@@ -39,7 +39,7 @@ from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.13"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -64,6 +64,8 @@ API_VERSION = "1.12"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      factors, note, add_constraint added); plugins declare the API they are written for (FUSIONKIT_API);
 #      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family); arc_path;
 #      the `cdpr` robot model is the core's, read through CableRobot / cable_robot by every cable family
+# 1.13: variable types are plugins (hook register_variable_types): VarType carries its names, units, array form,
+#      retraction and interpolation; `between` may be None
 
 __all__ = [
     "API_VERSION", "hookimpl",

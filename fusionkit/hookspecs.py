@@ -51,3 +51,11 @@ def register_robot_descriptions() -> dict:
 def register_commands() -> list[type]:
     """Return `fusionkit.api.Command` subclasses: subcommands `fusionkit <name>` (e.g. a planning tool
     that needs no config), listed by `fusionkit plugins` and `fusionkit --help`."""
+
+
+@hookspec
+def register_variable_types() -> list:
+    """Return `fusionkit.api.VarType` values: kinds of unknowns the core does not know (e.g. camera
+    intrinsics), each with its GTSAM storage and prior, its array form and retraction for vectorized
+    residuals, how states of it are interpolated in time, and the names its values are printed with.
+    Descriptions and `states: {type: ...}` then name it like a built-in type."""

@@ -28,7 +28,6 @@ from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions,
                               trajectory_errors)
 from .graph.builder import BuildContext, Problem, record_times, state_times
 from .graph.keys import STATE, TIME_VARYING, Family
-from .graph.variables import component_names
 from .plugins import registry
 from .progress import Progress
 from .threads import one_blas_thread
@@ -465,6 +464,6 @@ def _state_evaluation(states: dict[tuple[str, str], StateSeries], truth: Truth) 
                 out.setdefault(robot, {})[family] = state_errors(series, ref)
             except ValueError as exc:
                 raise DataError(f"{ref.origin or ref.name}: {exc}; expected columns t, "
-                                f"{', '.join(component_names(series.vartype)[0])}") from None
+                                f"{', '.join(series.vartype.names()[0])}") from None
     return {"states": out} if out else {}
 

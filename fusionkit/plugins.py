@@ -14,6 +14,7 @@ import pluggy
 from . import hookspecs
 from .components import BUILTIN_COMMANDS, Command, FactorType, Initializer, RobotModel, Simulator, Source
 from .errors import PluginError
+from .graph.variables import VarType, vector_named
 from .robots.registered import KIND as DESCRIPTIONS, is_description_name
 
 ENTRY_POINT_GROUP = "fusionkit"
@@ -21,6 +22,7 @@ BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not t
 
 # the core's own components; every robot family, fusionkit's included, is an entry-point plugin
 DEFAULT_PLUGINS = (
+    "fusionkit.graph.variables",
     "fusionkit.data.builtin_sources",
     "fusionkit.data.static_segments",
     "fusionkit.robots.generic",
@@ -39,9 +41,11 @@ KINDS = {
     "initializers": ("register_initializers", Initializer),
     "simulators": ("register_simulators", Simulator),
 }
+VARIABLE_TYPES = "variable_types"  # VarType instances (not classes): what a variable is and how it is handled
 COMMANDS = "commands"  # subcommands `fusionkit <name>` (not config components: no schema)
 # everything a plugin registers: the component classes, commands, and robot descriptions ({name: file})
 REGISTRATIONS = {**KINDS, COMMANDS: ("register_commands", Command),
+                 VARIABLE_TYPES: ("register_variable_types", VarType),
                  DESCRIPTIONS: ("register_robot_descriptions", None)}
 RESERVED = {COMMANDS: BUILTIN_COMMANDS}  # names no plugin may register
 
@@ -152,11 +156,16 @@ def _provided(impl, pname: str, hook_name: str, base: type | None) -> list[tuple
     if base is None:
         return _description_files(provided, pname, hook_name)
     provided = list(provided or [])
-    for cls in provided:
-        if not (isinstance(cls, type) and issubclass(cls, base)) or not cls.name:
-            raise PluginError(f"plugin {pname}: {hook_name} returned {cls!r}; expected a "
-                              f"{base.__name__} subclass with a name")
-    return [(cls.name, cls) for cls in provided]
+    instances = base is VarType  # variable types are VarType values, the other components classes
+    for item in provided:
+        if not (isinstance(item, base) if instances else isinstance(item, type) and issubclass(item, base)) \
+                or not item.name:
+            raise PluginError(f"plugin {pname}: {hook_name} returned {item!r}; expected a "
+                              f"{base.__name__} {'value' if instances else 'subclass'} with a name")
+        if instances and vector_named(item.name):
+            raise PluginError(f"plugin {pname}: variable type {item.name!r}: vectorN names are fusionkit's "
+                              "(any N); choose another name")
+    return [(item.name, item) for item in provided]
 
 
 def _description_files(provided, pname: str, hook_name: str) -> list[tuple[str, Any]]:
@@ -215,3 +224,17 @@ def registry() -> Registry:
     """The registry of all installed plugins (built once per process)."""
     broken: list[str] = []
     return build_registry(_plugin_manager(broken), broken)
+
+
+def variable_type(name: str) -> VarType:
+    """A registered variable type ('pose3', a plugin's 'cal3_s2', ...) or vectorN; ValueError naming what
+    is installed."""
+    found = registry().get(VARIABLE_TYPES, name) or vector_named(name)
+    if found is None:
+        raise ValueError(f"unknown variable type {name!r}; installed: {', '.join(variable_type_names())}")
+    return found
+
+
+def variable_type_names() -> list[str]:
+    """Every registered variable type's name, and vectorN."""
+    return registry().names(VARIABLE_TYPES) + ["vectorN"]

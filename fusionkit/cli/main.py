@@ -122,8 +122,13 @@ def command_usage(cls) -> str:
 def _listed(reg, kind: str, name: str) -> dict:
     """One registered item for `fusionkit plugins`: a component's summary and schema, a command's
     summary and usage, or a robot description's summary and file."""
-    from ..plugins import COMMANDS as PLUGIN_COMMANDS
+    from ..plugins import COMMANDS as PLUGIN_COMMANDS, VARIABLE_TYPES
     from ..robots.registered import KIND as DESCRIPTIONS, robot_description_data
+    if kind == VARIABLE_TYPES:
+        vartype = reg.get(kind, name)
+        components, axes = vartype.names()
+        return {"name": name, "summary": vartype.summary, "dim": vartype.dim, "components": list(components),
+                "axes": list(axes)}
     if kind == DESCRIPTIONS:
         return {"name": name, "summary": str(robot_description_data(name).get("summary", "")),
                 "file": str(reg.get(kind, name))}
@@ -150,6 +155,10 @@ def component_keys(reg, name: str) -> list[str]:
             continue
         item = _listed(reg, kind, name)
         lines.append(f"{_kind_label(kind)} {name} ({reg.provider[(kind, name)]}): {item['summary']}")
+        if "axes" in item:
+            lines.append(f"  value: [{', '.join(item['components'])}]; tangent axes (sigmas): "
+                         f"[{', '.join(item['axes'])}]")
+            continue
         if "file" in item or "usage" in item:
             lines.append(f"  file: {item['file']}" if "file" in item else f"  usage: {item['usage']}")
             continue

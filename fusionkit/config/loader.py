@@ -7,8 +7,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ..components import CheckScope, Spec
-from ..plugins import registry
-from ..graph.variables import vartype_named
+from ..plugins import registry, variable_type
 from ..robots.calibration_file import apply_calibration, calibration_entries
 from ..robots.checked import check_with_model
 from ..robots.description import RobotDescription, load_description
@@ -192,7 +191,7 @@ def _state_clock(doc: Document, robot: str, raw: dict, streams: dict[str, tuple[
     if "start" in raw and "end" in raw and raw["end"] <= raw["start"]:
         raise doc.error(path + ("end",), f"end {raw['end']} is not after start {raw['start']}")
     try:
-        vartype = vartype_named(raw.get("type", "pose3"))
+        vartype = variable_type(raw.get("type", "pose3"))
     except ValueError as exc:
         raise doc.error(path + ("type",), str(exc)) from None
     raw.setdefault("family", "pose" if vartype.name in ("pose3", "pose2") else "state")

@@ -13,7 +13,7 @@ import numpy as np
 from ..data.association import nearest
 from ..data.stream import Stream
 from ..graph.keys import STATE
-from ..graph.variables import VarType, component_names
+from ..graph.variables import VarType
 from .trajectory import MATCH_TOLERANCE
 
 
@@ -31,12 +31,12 @@ class StateSeries:
     def stream(self) -> Stream:
         """The values as a stream: `t` and the type's components (e.g. c0..c5 for a vector6)."""
         rows = [self.vartype.to_list(v) for v in self.values]
-        return Stream(f"{self.robot}.{self.family}", self.t, component_names(self.vartype)[0],
+        return Stream(f"{self.robot}.{self.family}", self.t, self.vartype.names()[0],
                       np.asarray(rows, float).reshape(len(self.t), -1))
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """(columns, rows) of states/<robot>.<family>.csv: t, the components, sigma_<axis> when known."""
-        values, axes = component_names(self.vartype)
+        values, axes = self.vartype.names()
         data = self.stream().values
         if self.sigma is None:
             return ["t", *values], np.column_stack([self.t, data])
@@ -63,13 +63,14 @@ def state_series(problem, values: gtsam.Values, covariances: dict[int, np.ndarra
 
 
 def _value(vartype: VarType, row: np.ndarray) -> Any:
-    return vartype.from_list(float(row[0]) if vartype.name == "scalar" else row)
+    """A file row's value of the type (a type held as a float, as scalar, from the row's one number)."""
+    return vartype.from_list(float(row[0]) if isinstance(vartype.zero(), float) else row)
 
 
 def state_errors(series: StateSeries, truth: Stream) -> dict:
     """Errors of `series` at the states that have a truth sample within MATCH_TOLERANCE: the tangent
     vector from truth to estimate per state; its RMSE per axis; with sigmas, the share inside 1/2/3 sigma."""
-    names = component_names(series.vartype)
+    names = series.vartype.names()
     missing = [c for c in names[0] if c not in truth.columns]
     if missing:
         raise ValueError(f"truth of {series.robot}.{series.family} lacks column(s) {', '.join(missing)}")

@@ -19,7 +19,8 @@ from ..time_offset.config import TimeOffset
 from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry
 from .noise import gaussian, noise_scale, with_kernel
-from .variables import POSE3, VarType, vartype_named
+from ..plugins import variable_type
+from .variables import POSE3, VarType
 from .evaluator import GraphEvaluator
 from .vectorized import InstanceCache, VectorizedGroup, VectorizedResidual
 
@@ -152,7 +153,7 @@ class BuildContext:
         self._scaled_sigmas: dict[str, set[tuple]] = {}  # label -> sigmas ctx.noise made for a scaled entry
         for name, setup in config.robots.items():
             if setup.states:
-                vt = vartype_named(setup.states["type"])
+                vt = variable_type(setup.states["type"])
                 family = self.keys.family(name, setup.states["family"], vt, STATE)
                 self.states[name] = StateSet(name, state_times(setup.states, streams), family)
 

@@ -11,7 +11,8 @@ axis N, and adds them with `ctx.add_vectorized`. fusionkit then
 
 Variables reach the function in these array forms (leading axis N):
     pose3 (N, 4, 4) homogeneous; pose2 (N, 3) [x, y, theta]; rot3 (N, 3, 3); scalar (N,);
-    point3, point2, velocity3, vectorD (N, D); imu_bias (N, 6) [accelerometer, gyroscope].
+    point3, point2, velocity3, vectorD (N, D); imu_bias (N, 6) [accelerometer, gyroscope]; a plugin's
+    variable type its `VarType.to_array` form.
 Jacobians are with respect to GTSAM's local coordinates: right perturbations X Exp(d) of poses and
 rotations, additive for vectors; one (N, dim, d_j) array per variable.
 """
@@ -24,7 +25,6 @@ from typing import Any, Callable
 import gtsam
 import numpy as np
 
-from .. import lie, se2
 from ..errors import SolverError
 from .passes import pass_token
 from .variables import VarType
@@ -33,66 +33,29 @@ Function = Callable[[list[np.ndarray], dict[str, np.ndarray], bool], Any]
 NUMERICAL_STEP = 1e-6
 
 
-# --- array forms of the variable types ------------------------------------------------------------
-def _one(vartype: VarType, value: Any) -> np.ndarray:
-    """A gtsam value -> its array form (without the leading axis)."""
-    name = vartype.name
-    if name in ("pose3", "rot3"):
-        return value.matrix()
-    if name == "pose2":
-        return np.array([value.x(), value.y(), value.theta()])
-    if name == "imu_bias":
-        return np.asarray(value.vector(), dtype=float)
-    return np.asarray(value, dtype=float)
-
-
+# --- array forms of the variable types (VarType.to_array, read_table, retract_array) -------------------
 class ValueReader:
-    """Reads variables of one gtsam.Values in array form; each pose type's table is extracted once
-    (one C++ call for all poses) and shared by every group read at these values."""
+    """Reads variables of one gtsam.Values in array form; a type with a table read (poses: one C++ call for
+    all of them) reads its table once, shared by every group read at these values."""
 
     def __init__(self, values: gtsam.Values):
         self.values = values
         self._tables: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
-    def _table(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        if name not in self._tables:
-            extract, select = ((gtsam.utilities.extractPose3, gtsam.utilities.allPose3s) if name == "pose3"
-                               else (gtsam.utilities.extractPose2, gtsam.utilities.allPose2s))
-            stored = np.asarray(select(self.values).keys(), dtype=np.int64)  # sorted, as the table's rows
-            self._tables[name] = (stored, extract(self.values))
-        return self._tables[name]
-
     def read(self, vartype: VarType, keys: np.ndarray) -> np.ndarray:
         """The values of `keys` (N,) in their array form (N, ...)."""
-        if vartype.name in ("pose3", "pose2"):
-            stored, table = self._table(vartype.name)
-            rows = table[np.searchsorted(stored, keys)]
-            if vartype.name == "pose2":
-                return rows
-            out = np.zeros((len(keys), 4, 4))
-            out[:, :3, :3] = rows[:, :9].reshape(-1, 3, 3)
-            out[:, :3, 3] = rows[:, 9:]
-            out[:, 3, 3] = 1.0
-            return out
+        if vartype.read_table is not None:
+            if vartype.name not in self._tables:
+                self._tables[vartype.name] = vartype.read_table(self.values)
+            stored, table = self._tables[vartype.name]
+            return table[np.searchsorted(stored, keys)]
         unique, inverse = np.unique(keys, return_inverse=True)
-        arrays = np.array([_one(vartype, vartype.read(self.values, int(k))) for k in unique])
+        arrays = np.array([vartype.to_array(vartype.read(self.values, int(k))) for k in unique])
         return arrays[inverse]
 
     def variables(self, types: tuple[VarType, ...], keys: np.ndarray) -> list[np.ndarray]:
         """The variables of N factors, keys (N, k) of the types `types`: one array per variable slot."""
         return [self.read(t, keys[:, j]) for j, t in enumerate(types)]
-
-
-def retract_arrays(vartype: VarType, x: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """x (+) d for N values at once, as GTSAM's retract (Expmap charts for poses and rotations)."""
-    name = vartype.name
-    if name == "pose3":
-        return x @ lie.exp(d)
-    if name == "rot3":
-        return x @ lie.exp(np.concatenate([d, np.zeros_like(d)], axis=-1))[..., :3, :3]
-    if name == "pose2":
-        return se2.compose(x, se2.exp(d))
-    return x + (d[..., 0] if x.ndim == 1 else d)
 
 
 # --- the residual ----------------------------------------------------------------------------------
@@ -139,7 +102,7 @@ class VectorizedResidual:
             d = np.zeros((n, vartype.dim))
             d[:, a] = NUMERICAL_STEP
             plus, minus = list(x), list(x)
-            plus[j], minus[j] = retract_arrays(vartype, x[j], d), retract_arrays(vartype, x[j], -d)
+            plus[j], minus[j] = vartype.retract_array(x[j], d), vartype.retract_array(x[j], -d)
             columns.append((self.function(plus, data, False) - self.function(minus, data, False))
                            / (2 * NUMERICAL_STEP))
         return np.stack(columns, axis=-1)
@@ -187,7 +150,7 @@ class InstanceCache:
             if token is self.token:
                 return self._row(row, jacobians)
         types = self.residual.variables
-        x = [_one(t, t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
+        x = [t.to_array(t.read(values, int(k)))[None] for t, k in zip(types, self.keys[row])]
         if len(self.keys) > 1 and not self._holds(row, x, jacobians) and \
                 all(values.exists(k) for k in self.unique_keys):
             self._evaluate_all(values, True)

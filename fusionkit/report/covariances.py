@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 
 from ..pipeline import RunResult
-from ..graph.variables import COMPONENTS
 
 
 def covariance_table(result: RunResult, robot: str) -> tuple[list[str], np.ndarray] | None:
@@ -24,7 +23,7 @@ def covariance_table(result: RunResult, robot: str) -> tuple[list[str], np.ndarr
     sigma = result.position_sigma.get(robot)
     if not keys or sigma is None or not all(k in cov for k in keys):
         return None
-    names = COMPONENTS[states.family.vartype.name][1]
+    names = states.family.vartype.names()[1]
     upper = np.triu_indices(len(names))
     columns = ["t", *("sx", "sy", "sz")[: sigma.shape[1]], *(f"cov_{names[i]}_{names[j]}" for i, j in zip(*upper))]
     rows = np.column_stack([result.trajectories[robot].t, sigma, np.array([cov[k][upper] for k in keys])])

@@ -14,7 +14,6 @@ import yaml
 from .. import __version__
 from ..data.files import write_tum
 from ..eval.states import StateSeries
-from ..graph.variables import component_names
 from ..pipeline import ParameterEstimate, RunResult
 from ..robots.calibration_file import calibration_entry
 from ..plugins import registry
@@ -162,7 +161,7 @@ def states_entry(result: RunResult) -> dict:
     out: dict[str, dict] = {}
     for (robot, family), series in result.states.items():
         out.setdefault(robot, {})[family] = {
-            "type": series.vartype.name, "count": len(series.t), "components": list(component_names(series.vartype)[0]),
+            "type": series.vartype.name, "count": len(series.t), "components": list(series.vartype.names()[0]),
             "file": files.get(id(series), f"trajectories/{robot}.tum")}
     return out
 

@@ -9,8 +9,6 @@ import numpy as np
 
 from ..pipeline import ParameterEstimate, RunResult
 from ..graph.builder import Held
-from ..graph.variables import COMPONENTS
-from ..robots.calibration_file import SIGMA_AXES
 from ..solve.identifiability import SHOWN
 from ..solve.noise_scales import scale_text
 
@@ -21,7 +19,7 @@ def _number_list(v: np.ndarray) -> str:
     return "[" + ", ".join(f"{x:.5g}" for x in v) + "]"
 
 
-def format_value(values, sigma, kind: str = "", held=()) -> str:
+def format_value(values, sigma, vartype, held=()) -> str:
     """`2.5 ± 0.01`; types with named components: `x 1, y 2, ... ± rx 0.01, ...` (sigma: 2 significant digits);
     vectors: `[1, 2] ± [0.01, 0.02]`. The sigmas of the tangent axes in `held` read `held`."""
     v = np.atleast_1d(np.asarray(values, dtype=float))
@@ -32,14 +30,14 @@ def format_value(values, sigma, kind: str = "", held=()) -> str:
 
     if v.size == 1:
         return f"{v[0]:.5g}" + ("" if s is None else f" ± {sig(0, s[0])}")
-    if kind not in COMPONENTS:
+    if not vartype.components:
         text = _number_list(v)
         return text if s is None else text + " ± [" + ", ".join(sig(j, x) for j, x in enumerate(s)) + "]"
-    names, sigma_names = COMPONENTS[kind]
+    names, sigma_names = vartype.names()
     text = ", ".join(f"{n} {x:.5g}" for n, x in zip(names, v))
     if s is None:
         return text
-    axes = f" ({SIGMA_AXES[kind]})" if kind in SIGMA_AXES else ""
+    axes = f" ({vartype.sigma_note})" if vartype.sigma_note else ""
     return f"{text} ± " + ", ".join(f"{n} {sig(j, x)}" for j, (n, x) in enumerate(zip(sigma_names, s))) + axes
 
 
@@ -77,26 +75,26 @@ def _held_text(vt, value, nominal, sigma, held: Held, unit: str) -> str:
     """An element some of whose axes a factor holds: `held (why) at 0 rad` when all are, else the value with
     those sigmas reading `held` (and, for vectors, their nominal values) and `; tx, rx held (why)`."""
     if len(held.axes) >= vt.dim:
-        return f"held ({held.reason}) at {format_value(vt.to_list(nominal), None, vt.name)}{unit}"
+        return f"held ({held.reason}) at {format_value(vt.to_list(nominal), None, vt)}{unit}"
     shown = np.atleast_1d(np.asarray(vt.to_list(value), dtype=float))
-    if vt.name not in COMPONENTS and shown.size == vt.dim:  # a vector: its entries are its tangent axes
+    if not vt.components and shown.size == vt.dim:  # a vector: its entries are its tangent axes
         shown[list(held.axes)] = np.atleast_1d(np.asarray(vt.to_list(nominal), dtype=float))[list(held.axes)]
-    names = held.labels or tuple(COMPONENTS[vt.name][1][a] if vt.name in COMPONENTS else f"[{a}]" for a in held.axes)
-    return (f"{format_value(shown, sigma, vt.name, set(held.axes))}{unit}; "
+    names = held.labels or tuple(vt.axes[a] if vt.axes else f"[{a}]" for a in held.axes)
+    return (f"{format_value(shown, sigma, vt, set(held.axes))}{unit}; "
             f"{', '.join(names)} held ({held.reason})")
 
 
 def _range(vt, values: list) -> str | None:
     """min..max of each component over a series (none for types with a rotation)."""
-    if vt.name in SIGMA_AXES:
+    if vt.lie_group is not None:
         return None
     rows = np.array([np.atleast_1d(np.asarray(vt.to_list(v), dtype=float)) for v in values])
     lo, hi = rows.min(axis=0), rows.max(axis=0)
     spans = [f"{a:.5g}..{b:.5g}" for a, b in zip(lo, hi)]
     if len(spans) == 1:
         return spans[0]
-    if vt.name in COMPONENTS:
-        return ", ".join(f"{n} {x}" for n, x in zip(COMPONENTS[vt.name][0], spans))
+    if vt.components:
+        return ", ".join(f"{n} {x}" for n, x in zip(vt.components, spans))
     return "[" + ", ".join(spans) + "]"
 
 
@@ -110,7 +108,7 @@ def series_text(result: RunResult, est: ParameterEstimate) -> str:
         return f"{head}, held ({holds[0].reason})"
 
     def at(i: int) -> str:
-        return format_value(vt.to_list(est.values[i]), None if est.sigma is None else est.sigma[i], vt.name) + unit
+        return format_value(vt.to_list(est.values[i]), None if est.sigma is None else est.sigma[i], vt) + unit
 
     text = f"{head}, first {at(0)}, last {at(-1)}"
     span = _range(vt, est.values)
@@ -141,7 +139,7 @@ def parameter_rows(result: RunResult) -> list[ParameterRow]:
                 label = fam.label(i) if len(est.values) > 1 or fam.elements else fam.label()
                 sigma = None if est.sigma is None else est.sigma[i]
                 held = result.problem.held.get(fam.key(i))
-                text = (format_value(vt.to_list(v), sigma, vt.name) + unit if held is None
+                text = (format_value(vt.to_list(v), sigma, vt) + unit if held is None
                         else _held_text(vt, v, _nominal(result, est, i), sigma, held, unit))
                 rows.append(ParameterRow(robot, name, i, label, text))
     return rows

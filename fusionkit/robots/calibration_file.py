@@ -23,22 +23,20 @@ from typing import Any
 import numpy as np
 
 from ..config.yamlio import Document
-from ..graph.variables import COMPONENTS
+from ..plugins import variable_type
 from .description import Parameter, RobotDescription, _sigma_array
-
-# type -> (names of a value's list entries, names of a sigma's entries); other types (scalar, vectorN)
-# have no named components
-# what the sigma names of a type with rotation mean (printed beside them in the summary)
-SIGMA_AXES = {"pose3": "rad about, m along the body axes", "pose2": "m along, rad about the body axes",
-              "rot3": "rad about the body axes"}
 
 
 def _check_components(doc: Document, path: tuple, entry: dict) -> None:
     """A located error when `components` / `sigma_components` name other entries than fusionkit's order."""
     kind = entry.get("type")
-    if not isinstance(kind, str) or kind not in COMPONENTS:
+    try:
+        vartype = variable_type(kind) if isinstance(kind, str) else None
+    except ValueError:
+        vartype = None  # its values are read as the description's parameter's type when applied
+    if vartype is None or not vartype.components:
         return
-    for key, what, expected in zip(("components", "sigma_components"), ("value", "sigma"), COMPONENTS[kind]):
+    for key, what, expected in zip(("components", "sigma_components"), ("value", "sigma"), vartype.names()):
         got = entry.get(key, list(expected))
         if got != list(expected):
             shown = f"[{', '.join(map(str, got))}]" if isinstance(got, list) else repr(got)
@@ -107,9 +105,9 @@ def _check_elements(doc: Document, path: tuple, param: Parameter, entry: dict) -
 
 def calibration_entry(param: Parameter, values: list[Any], sigmas: np.ndarray | None) -> dict[str, Any]:
     """One YAML entry: {type, value|values, sigma} with sigma per tangent axis; types with named
-    components (COMPONENTS) name them in `components` after the value and `sigma_components` after the sigma;
+    components (VarType.components) name them in `components` after the value and `sigma_components` after the sigma;
     a parameter with named elements (`Parameter.elements`) names them in `elements` after the values."""
-    names = COMPONENTS.get(param.vartype.name)
+    names = param.vartype.names() if param.vartype.components else None
     out: dict[str, Any] = {"type": param.vartype.name}
     listed = [param.vartype.to_list(v) for v in values]
     sig = None if sigmas is None or param.fixed else [[float(x) for x in row] for row in np.atleast_2d(sigmas)]

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..config.schema import validate_against
 from ..config.yamlio import Document, load_yaml
-from ..graph.variables import POSE3, VARTYPE_NAMES, VarType, vartype_named
+from ..graph.variables import POSE3, VarType
+from ..plugins import variable_type, variable_type_names
 from .registered import is_description_name, registered_document
 
 POSE_SCHEMA = {
@@ -153,10 +154,10 @@ def _sigma_array(raw: Any, count: int, dim: int) -> np.ndarray | None:
 def _parameter(doc: Document, name: str, raw: dict) -> Parameter:
     path = ("parameters", name)
     try:
-        vartype = vartype_named(raw["type"])
+        vartype = variable_type(raw["type"])
     except ValueError:
-        raise doc.error(path + ("type",), f"unknown variable type {raw['type']!r}; accepted: "
-                        f"{', '.join(VARTYPE_NAMES)}") from None
+        raise doc.error(path + ("type",), f"unknown variable type {raw['type']!r}; installed: "
+                        f"{', '.join(variable_type_names())}") from None
     given = [k for k in ("value", "values", "count") if k in raw]
     if len(given) > 1:
         raise doc.error(path + (given[1],), f"give one of value, values or count (not {' and '.join(given)})")

@@ -27,7 +27,6 @@ import gtsam
 import numpy as np
 
 from ..graph.builder import Problem
-from ..graph.variables import component_names
 from .prior_check import description_priors
 
 CORRELATED = 0.9  # |rho| beyond which two components are reported as confused
@@ -186,7 +185,7 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
     for k, dim in zip(keys, dims):
         family, _ = problem.keys.decode(k)
         declared = parameter(family.robot, family.name) if parameter else None
-        axes = declared.axes if declared is not None and declared.axes else component_names(family.vartype)[1]
+        axes = declared.axes if declared is not None and declared.axes else family.vartype.names()[1]
         base = problem.keys.name_of(k)
         held = problem.held[k].axes if k in problem.held else ()
         for axis in range(dim):
@@ -194,7 +193,7 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
             if axis in held:
                 continue
             names.append(base if dim == 1 else f"{base}.{axes[axis]}")
-            units.append(_unit(family, axes[axis], declared))
+            units.append(family.vartype.unit(axis, (declared.unit or "") if declared is not None else ""))
             owner.append(base)
     prior_sigma = _prior_sigmas(problem, keys, dims, np.flatnonzero(kept))
     if not names:
@@ -218,14 +217,6 @@ def identifiability(problem: Problem, values: gtsam.Values, qr: bool = False, hi
         parameters = sorted({owner[i] for i in group})
         directions.append(Direction(group, step, list(hints(parameters)) if hints else []))
     return Identifiability(names, units, sigma, correlation, prior_sigma, pairs, decides, rests_on, directions)
-
-
-def _unit(family, axis: str, declared) -> str:
-    if family.vartype.name in ("pose3", "pose2", "rot3"):
-        return "rad" if axis.startswith("r") else "m"
-    if family.vartype.name == "imu_bias":  # accelerometer ax..az, gyroscope gx..gz
-        return "m/s^2" if axis.startswith("a") else "rad/s"
-    return declared.unit if declared is not None and declared.unit else ""
 
 
 def _prior_sigmas(problem: Problem, keys: list[int], dims: list[int], kept: np.ndarray) -> dict[int, float]:

@@ -29,7 +29,6 @@ import gtsam
 import numpy as np
 
 from ..graph.keys import STATE, KeyRegistry
-from ..graph.variables import component_names
 from .covariance_recovery import frontal_count
 from .factorization import eliminate
 from .levenberg import hessian_diagonal
@@ -190,7 +189,7 @@ def _moving(keys: KeyRegistry, direction: dict[int, np.ndarray]) -> list[tuple]:
 
 def _family_text(keys: KeyRegistry, family, members: tuple, axes: np.ndarray, total: int) -> str:
     """`robot/pose[0..399] (all 400; tx, ty, rz)`, `cam/vo_scale`, `robot/pose[120..140] (21 of 400; tx)`."""
-    names = ", ".join(a for a, m in zip(component_names(family.vartype)[1], axes) if m)
+    names = ", ".join(a for a, m in zip(family.vartype.names()[1], axes) if m)
     if not family.indexed:
         return family.label() + (f" ({names})" if family.vartype.dim > 1 else "")
     count = f"all {total}" if len(members) == total else f"{len(members)} of {total}"
@@ -220,7 +219,7 @@ def _fix(keys: KeyRegistry, family, members: tuple, axes: np.ndarray, total: int
     if len(members) < total:
         return (f"a measurement of {family.label()}[{index_ranges([keys.decode(k)[1] for k in members])}] or a factor "
                 "tying them to the other states")
-    names = ", ".join(a for a, m in zip(component_names(family.vartype)[1], axes) if m)
+    names = ", ".join(a for a, m in zip(family.vartype.names()[1], axes) if m)
     return (f"a prior or an absolute measurement of the first state {family.label(0)} ({names}), e.g. a pose.origin "
             "or pose.absolute factor")
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..components import CheckScope, Spec
-from ..graph.variables import vartype_named
+from ..plugins import variable_type
 from .interpolation import interpolable
 
 KEY = "time_offset"
@@ -86,6 +86,6 @@ def check_time_offset(spec: Spec, factor_type: type, scope: CheckScope) -> None:
                          "(remove `velocities:`)")
     for key in factor_type.robot_fields:
         states = scope.states.get(spec.get(key)) if key in spec.data else None
-        if states and not interpolable(vartype_named(states.get("type", "pose3"))):
+        if states and not interpolable(variable_type(states.get("type", "pose3"))):
             raise spec.error(path, f"robot {spec[key]!r} has {states['type']} states, which cannot be interpolated "
                              "in time")

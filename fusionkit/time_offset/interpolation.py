@@ -41,7 +41,7 @@ from typing import Callable
 import gtsam
 import numpy as np
 
-from ..graph.variables import VarType
+from ..graph.variables import ROT3, VarType
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ class _Lie:
     """Group operations with right-perturbation Jacobians, for one GTSAM Lie type."""
 
     cls: type
-    read: str  # Values accessor
+    read: Callable[[gtsam.Values, int], object]  # the type's read from a Values
 
     def log_between(self, a, b):
         """(xi = Log(a^-1 b), dxi/da, dxi/db)."""
@@ -73,36 +73,36 @@ class _Lie:
 
 @dataclass(frozen=True)
 class _Linear:
-    """Vectors, points and scalars: the same operations in a vector space."""
+    """Vectors, points, scalars and any type without a lie_group: the same operations on its array form."""
 
-    read: str
+    read: Callable[[gtsam.Values, int], object]
     dim: int
+    to_array: Callable[[object], np.ndarray]  # a Values entry -> its array form (VarType.to_array)
+    entry: Callable[[np.ndarray], object]     # an array (dim,) -> the Values entry of the type
 
     def log_between(self, a, b):
         eye = np.eye(self.dim)
-        return np.atleast_1d(np.asarray(b, float) - np.asarray(a, float)), -eye, eye
+        return np.atleast_1d(self.to_array(b)) - np.atleast_1d(self.to_array(a)), -eye, eye
 
     def exp_from(self, a, xi):
         eye = np.eye(self.dim)
-        return np.atleast_1d(np.asarray(a, float)) + xi, eye, eye
+        return np.atleast_1d(self.to_array(a)) + xi, eye, eye
 
     def error(self, y, m):
         eye = np.eye(self.dim)
-        return np.atleast_1d(np.asarray(m, float)) - y, -eye, eye
-
-
-_LIE = {"pose3": _Lie(gtsam.Pose3, "atPose3"), "pose2": _Lie(gtsam.Pose2, "atPose2"),
-        "rot3": _Lie(gtsam.Rot3, "atRot3")}
-_VECTOR_READ = {"point3": "atPoint3", "point2": "atPoint2", "scalar": "atDouble"}
+        return np.atleast_1d(self.to_array(m)) - y, -eye, eye
 
 
 def operations(vartype: VarType):
-    """The interpolation's operations for a state type; ValueError for a type that has none (imu_bias)."""
-    if vartype.name in _LIE:
-        return _LIE[vartype.name]
-    if vartype.name in _VECTOR_READ or vartype.name.startswith("vector") or vartype.name == "velocity3":
-        return _Linear(_VECTOR_READ.get(vartype.name, "atVector"), vartype.dim)
-    raise ValueError(f"{vartype.name} states cannot be interpolated in time")
+    """The interpolation's operations for a state type (VarType.lie_group: on the group; else in the vector
+    space); ValueError for a type declared not interpolable (imu_bias)."""
+    if not vartype.interpolable:
+        raise ValueError(f"{vartype.name} states cannot be interpolated in time")
+    if vartype.lie_group is not None:
+        return _Lie(vartype.lie_group, vartype.read)
+    scalar = isinstance(vartype.zero(), float)  # the Values holds a float, not a 1-vector
+    return _Linear(vartype.read, vartype.dim, vartype.to_array,
+                   (lambda y: vartype.from_list(float(y[0]))) if scalar else vartype.from_list)
 
 
 def interpolable(vartype: VarType) -> bool:
@@ -182,7 +182,7 @@ def _pose_velocity_curve(timing: Timing, poses: list, velocities: list, pair: in
     (g = t_b - t_a, u = (tau - t_a) / g, outside [0, 1] when tau left that pair). Jacobians in Pose3's
     right tangent (rotation, translation): a pose's rotation moves only the rotation, its translation
     (R_i dt_i in the world) only the position, seen in the curve point's frame as R^T; dx/ds = h dx/dtau."""
-    R, j, dR_da, dR_di, dR_ds, h, _ = _curve(_LIE["rot3"], timing, [x.rotation() for x in poses], tau)
+    R, j, dR_da, dR_di, dR_ds, h, _ = _curve(operations(ROT3), timing, [x.rotation() for x in poses], tau)
     a, b = pair, pair + 1
     g = timing.window_t[b] - timing.window_t[a]
     u = (tau - timing.window_t[a]) / g
@@ -216,16 +216,12 @@ def interpolate(vartype: VarType, window_t: np.ndarray, states: list, tau: float
     if velocities is not None:
         return _pose_velocity_curve(timing, states, velocities, pair, tau)[0]
     y = _curve(ops, timing, states, tau)[0]
-    if isinstance(ops, _Linear):
-        return float(y[0]) if vartype.name == "scalar" else y
-    return y
+    return _value(ops, y)
 
 
 def _value(ops, y):
     """The curve's point as the Values entry of its type (a float for scalars)."""
-    if isinstance(ops, _Linear) and ops.read == "atDouble":
-        return float(y[0])
-    return y
+    return ops.entry(y) if isinstance(ops, _Linear) else y
 
 
 @dataclass
@@ -249,8 +245,7 @@ class Shift:
     def curve(self, ops, values: gtsam.Values):
         """(x(tau), j, dx/dx_j, {i: dx/dx_i}, dx/ds, interval, {i: dx/dv_i}) at the values' states,
         velocities, delta and rho."""
-        read = getattr(values, ops.read)
-        states = [read(k) for k in self.window]
+        states = [ops.read(values, k) for k in self.window]
         speeds = [values.atVector(k) for k in self.velocities] if self.velocities else []
         delta = values.atDouble(self.offset)
         rho = 0.0 if self.rate is None else values.atDouble(self.rate)

@@ -10,7 +10,7 @@ from .initializer import INITIALIZERS
 from .model import SerialArmModel
 from .simulator import SIMULATORS
 
-FUSIONKIT_API = "1.12"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

@@ -321,7 +321,7 @@ def test_missing_sigma_names_the_factor_line_and_the_expected_keys(tmp_path, out
     ("    value: 1.0 ", "    valu: 1.0 ", "valu: 1.0", "parameters.vo_scale.valu",
      "unknown key 'valu'; accepted keys: count, fixed, sigma, summary, time_varying, type, unit, value, values"),
     ("    type: scalar", "    type: scaler", "type: scaler", "parameters.vo_scale.type",
-     ("unknown variable type 'scaler'; accepted: imu_bias, point2, point3, pose2, pose3, rot3, scalar, velocity3, "
+     ("unknown variable type 'scaler'; installed: imu_bias, point2, point3, pose2, pose3, rot3, scalar, velocity3, "
      "vectorN")),
     ("translation: [0.0, 0.0, 0.05]", "translation: [0.0, 0.05]", "translation: [0.0, 0.05]",
      "sensors.marker.mount.translation", "got [0.0, 0.05]; expected a list of 3 numbers"),

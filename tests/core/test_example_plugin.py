@@ -1,77 +1,31 @@
-"""The example third-party plugin, examples/fusionkit-altimeter, as a real installed package.
-
-It is pip-installed (dist-info with its entry point) into a private folder that only the
-subprocesses see through PYTHONPATH: the test environment is not modified. Then, as a user would:
+"""The example third-party plugin, examples/fusionkit-altimeter, as a real installed package
+(tests/example_packages.py: pip-installed into a private folder only the subprocesses see). As a user would:
 `fusionkit plugins --json` lists it, its factor type passes the contract suite (and a broken
 Jacobian would not), `fusionkit validate` reports its `check()` errors, and `fusionkit run` on
-the demo config estimates the altimeter bias. Tests that need the installed package are skipped
-only when pip is unavailable.
+the demo config estimates the altimeter bias.
 """
 
 from __future__ import annotations
 
 import importlib.metadata
-import importlib.util
 import json
 import os
-import shutil
-import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
 import pytest
 import yaml
+from example_packages import fusionkit_cmd, install_example, run
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "examples" / "fusionkit-altimeter"
 DEMO = EXAMPLE / "configs" / "demo.yaml"
 
 
-def _builds_without_isolation() -> bool:
-    """Can this environment build the example without fetching build requirements?
-
-    setuptools' PEP 517 backend makes wheels by itself from 70.1; older ones need the `wheel`
-    distribution (its metadata registers the bdist_wheel command)."""
-    def version(dist: str) -> tuple[int, ...] | None:
-        try:
-            return tuple(int(p) for p in importlib.metadata.version(dist).split(".")[:2] if p.isdigit())
-        except importlib.metadata.PackageNotFoundError:
-            return None
-    setuptools = version("setuptools")
-    return setuptools is not None and (setuptools >= (70, 1) or version("wheel") is not None)
-
-
-def _fusionkit_cmd() -> list[str]:
-    script = Path(sys.executable).parent / "fusionkit"
-    return [str(script)] if script.exists() else [sys.executable, "-m", "fusionkit.cli.main"]
-
-
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> dict:
-    """pip-install a copy of the example (so no build/ or egg-info/ lands in the repository)
-    into a target folder; return the folder and the environment that makes it importable."""
-    if importlib.util.find_spec("pip") is None:
-        pytest.skip("pip is not available to install the example package")
-    root = tmp_path_factory.mktemp("altimeter")
-    src, target = root / "src", root / "site"
-    shutil.copytree(EXAMPLE, src, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__", "out"))
-    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-compile", "--target",
-           str(target), str(src)]
-    if _builds_without_isolation():
-        cmd.insert(4, "--no-build-isolation")
-    # otherwise pip builds in an isolated environment with setuptools from its index: still
-    # nothing is installed into this environment.
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, f"pip install failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    env = dict(os.environ, MPLBACKEND="Agg",
-               PYTHONPATH=os.pathsep.join([str(target), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    return {"target": target, "env": env, "root": root}
-
-
-def run(args: list[str], installed: dict, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run(args, env=installed["env"], cwd=installed["root"], capture_output=True, text=True,
-                          timeout=120, **kw)
+    return install_example("fusionkit-altimeter", tmp_path_factory)
 
 
 def test_installed_as_a_distribution_with_entry_point(installed):
@@ -85,7 +39,7 @@ def test_installed_as_a_distribution_with_entry_point(installed):
 
 
 def test_plugins_json_lists_the_example_factor_and_simulator_with_summaries(installed):
-    proc = run([*_fusionkit_cmd(), "plugins", "--json"], installed)
+    proc = run([*fusionkit_cmd(), "plugins", "--json"], installed)
     assert proc.returncode == 0, proc.stderr
     listing = json.loads(proc.stdout)
     assert "altimeter" in listing, list(listing)
@@ -148,7 +102,7 @@ def test_contract_passes_and_a_broken_jacobian_is_caught(installed):
     ("factors.2.stream=gnss", "factors[2].stream: stream 'gnss' (sources[0]) lacks column(s) height"),
 ])
 def test_plugin_check_errors_are_one_line_located_in_the_demo_config(installed, override, message):
-    proc = run([*_fusionkit_cmd(), "validate", str(DEMO), "--set", override], installed)
+    proc = run([*fusionkit_cmd(), "validate", str(DEMO), "--set", override], installed)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     assert message in proc.stderr and f"{DEMO}:" in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
@@ -157,7 +111,7 @@ def test_plugin_check_errors_are_one_line_located_in_the_demo_config(installed, 
 @pytest.mark.slow
 def test_demo_estimates_the_bias_within_3_sigma_and_3_cm(installed):
     out = installed["root"] / "out"
-    proc = run([*_fusionkit_cmd(), "run", str(DEMO), "--out", str(out)], installed)
+    proc = run([*fusionkit_cmd(), "run", str(DEMO), "--out", str(out)], installed)
     assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
     true_bias = yaml.safe_load(DEMO.read_text())["sources"][0]["params"]["bias"]
 
@@ -182,11 +136,11 @@ def test_simulated_csv_dataset_runs_and_recovers_the_bias_within_5_cm(installed)
     """`fusionkit simulate altimeter.demo` writes the altimeter as a stream CSV (t,height) with a
     runnable config: the factor works from files as well as in-process data."""
     sim, out = installed["root"] / "sim", installed["root"] / "sim_out"
-    proc = run([*_fusionkit_cmd(), "simulate", "altimeter.demo", "--out", str(sim), "--seed", "1",
+    proc = run([*fusionkit_cmd(), "simulate", "altimeter.demo", "--out", str(sim), "--seed", "1",
                 "--set", "duration=20", "--set", "bias=-0.8"], installed)
     assert proc.returncode == 0, proc.stderr
     assert (sim / "data" / "baro.csv").read_text().splitlines()[0] == "t,height"
-    proc = run([*_fusionkit_cmd(), "run", str(sim / "config.yaml"), "--out", str(out), "--no-plots"], installed)
+    proc = run([*fusionkit_cmd(), "run", str(sim / "config.yaml"), "--out", str(out), "--no-plots"], installed)
     assert proc.returncode == 0, f"{proc.stdout}\n{proc.stderr}"
     est = json.loads((out / "report.json").read_text())["parameters"]["drone"]["baro_bias"]
     assert abs(est["value"] + 0.8) < max(3 * est["sigma"], 1e-3) and abs(est["value"] + 0.8) < 0.05, est
@@ -224,7 +178,7 @@ def test_misspelled_hook_is_named_and_the_plugin_left_out(tmp_path):
         def register_factor_type():
             return []
     """)
-    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    proc = run([*fusionkit_cmd(), "plugins", "--json"], fake)
     assert proc.returncode == 0, proc.stderr
     (line,) = proc.stderr.splitlines()
     assert line.startswith(WARNING.split("{reason}")[0]) and "unknown hook 'register_factor_type'" in line
@@ -237,11 +191,11 @@ def test_plugin_that_fails_to_import_does_not_stop_configs_that_do_not_use_it(tm
         import a_module_that_is_not_installed
     """)
     config = REPO / "configs" / "scaled_vo_mocap.yaml"
-    proc = run([*_fusionkit_cmd(), "validate", str(config), "--set", "sources.0.params.duration=4"], fake)
+    proc = run([*fusionkit_cmd(), "validate", str(config), "--set", "sources.0.params.duration=4"], fake)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.splitlines() == [WARNING.format(
         reason="ModuleNotFoundError: No module named 'a_module_that_is_not_installed'")]
-    proc = run([*_fusionkit_cmd(), "validate", str(config), "--set", "factors.0.type=probe.altimeter"], fake)
+    proc = run([*fusionkit_cmd(), "validate", str(config), "--set", "factors.0.type=probe.altimeter"], fake)
     assert proc.returncode == 2
     error = proc.stderr.splitlines()[-1]
     assert "factors[0].type: unknown factor type 'probe.altimeter'; installed: " in error
@@ -256,7 +210,7 @@ def test_only_marked_functions_are_hooks(tmp_path):
         def register_factor_types():
             raise RuntimeError("called although not marked @hookimpl")
     """)
-    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    proc = run([*fusionkit_cmd(), "plugins", "--json"], fake)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["probe"] == {}
 
@@ -280,7 +234,7 @@ def test_a_plugin_written_for_another_api_version_is_refused_in_one_line(tmp_pat
         def register_simulators():
             return [Probe]
     """)
-    proc = run([*_fusionkit_cmd(), "plugins", "--json"], fake)
+    proc = run([*fusionkit_cmd(), "plugins", "--json"], fake)
     assert proc.returncode == 0, proc.stderr
     listed = json.loads(proc.stdout)
     if accepted:

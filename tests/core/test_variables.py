@@ -18,7 +18,8 @@ from fusionkit.config.yamlio import Document
 from fusionkit.graph.builder import STATIC_TIME, BuildContext
 from fusionkit.graph.keys import INDEX_BITS, STATE, STATIC, TIME_VARYING, KeyRegistry
 from fusionkit.graph.noise import gaussian
-from fusionkit.graph.variables import POSE2, POSE3, SCALAR, VARTYPE_NAMES, vartype_named
+from fusionkit.graph.variables import POSE2, POSE3, SCALAR
+from fusionkit.plugins import variable_type, variable_type_names
 from fusionkit.pipeline import read_sources
 from fusionkit.robots.description import description_from_document
 from fusionkit.testing import FactorExample, check_factor_contract
@@ -45,7 +46,7 @@ def _as_array(x) -> np.ndarray:
 @pytest.mark.parametrize("name", FAMILIES)
 def test_family_round_trips_and_prior_and_between_measure_the_same_tangent_delta(name):
     raw, dim = FAMILIES[name]
-    vt = vartype_named(name)
+    vt = variable_type(name)
     assert (vt.name, vt.dim) == (name, dim)
     value = vt.from_list(raw)
     np.testing.assert_allclose(_as_array(vt.to_list(value)), _as_array(raw), atol=1e-12)
@@ -87,14 +88,14 @@ def test_local_matches_hand_computations():
     """Vector spaces subtract; Pose3/Rot3 rotation parts are the rotation vector of Ra^T Rb
     (GTSAM tangent order [rotation, translation]); Pose2 is [x, y, theta] in a's frame."""
     for name in ("point3", "point2", "scalar", "vector7", "velocity3", "imu_bias"):
-        vt = vartype_named(name)
+        vt = variable_type(name)
         raw, dim = FAMILIES[name]
         a = vt.from_list(raw)
         b = vt.from_list(list(_as_array(raw) + np.arange(1, dim + 1) * 0.1) if dim > 1 else float(raw) + 0.1)
         np.testing.assert_allclose(vt.local(a, b), np.arange(1, dim + 1) * 0.1, atol=1e-12)
     ra, rb = gtsam.Rot3.RzRyRx(0.1, 0.2, 0.3), gtsam.Rot3.RzRyRx(-0.2, 0.4, 1.0)
     rotvec = Rotation.from_matrix(ra.matrix().T @ rb.matrix()).as_rotvec()
-    np.testing.assert_allclose(vartype_named("rot3").local(ra, rb), rotvec, atol=1e-12)
+    np.testing.assert_allclose(variable_type("rot3").local(ra, rb), rotvec, atol=1e-12)
     pa, pb = gtsam.Pose3(ra, np.array([1.0, 2.0, 3.0])), gtsam.Pose3(rb, np.array([1.0, 2.0, 3.0]))
     np.testing.assert_allclose(POSE3.local(pa, pb)[:3], rotvec, atol=1e-12)
     # a pure translation in a's frame: Log has no rotation and the translation R_a^T (t_b - t_a)
@@ -112,14 +113,14 @@ def test_pose3_value_formats_agree_and_malformed_values_are_refused():
                 expected.matrix(), POSE3.to_list(expected)):
         assert POSE3.from_list(raw).equals(expected, 1e-12)
     q = Rotation.from_euler("xyz", [0.1, 0.2, 0.3]).as_quat()  # extrinsic x-y-z = Rz Ry Rx
-    assert vartype_named("rot3").from_list(list(q)).equals(gtsam.Rot3.RzRyRx(0.1, 0.2, 0.3), 1e-12)
+    assert variable_type("rot3").from_list(list(q)).equals(gtsam.Rot3.RzRyRx(0.1, 0.2, 0.3), 1e-12)
     for name, bad in (("pose3", [1, 2, 3]), ("pose2", [1, 2]), ("point3", [1, 2]), ("scalar", True),
                       ("scalar", "1.0"), ("imu_bias", [0] * 5), ("vector7", [0] * 6), ("rot3", [0, 0])):
         with pytest.raises(ValueError):
-            vartype_named(name).from_list(bad)
-    with pytest.raises(ValueError, match="accepted: .*vectorN"):
-        vartype_named("pose4")
-    assert vartype_named("vector5").dim == 5 and "vectorN" in VARTYPE_NAMES
+            variable_type(name).from_list(bad)
+    with pytest.raises(ValueError, match="installed: .*vectorN"):
+        variable_type("pose4")
+    assert variable_type("vector5").dim == 5 and "vectorN" in variable_type_names()
 
 
 def test_factor_checks_ask_for_a_family_by_its_name(workspace):
@@ -143,7 +144,7 @@ def test_key_registry_names_and_decodes():
     keys = KeyRegistry()
     pose = keys.family("cam", "pose", POSE3, STATE)
     scale = keys.family("cam", "vo_scale", SCALAR, STATIC, indexed=False)
-    pulley = keys.family("cam", "pulley", vartype_named("point3"), STATIC)
+    pulley = keys.family("cam", "pulley", variable_type("point3"), STATIC)
     bias = keys.family("cam", "bias", SCALAR, TIME_VARYING)
     other = keys.family("rig", "pose", POSE3, STATE)
     assert keys.name_of(pose.key(12)) == "cam/pose[12]"
@@ -210,12 +211,12 @@ def test_description_parameters_become_named_variables_with_priors(context):
 
 def test_redeclaring_a_family_with_another_type_errors(context):
     ctx = context
-    ctx.state_variable("cam", "velocity", vartype_named("velocity3"), 0)
+    ctx.state_variable("cam", "velocity", variable_type("velocity3"), 0)
     with pytest.raises(ValueError, match="cam/velocity declared as state velocity3 and again as state imu_bias"):
-        ctx.state_variable("cam", "velocity", vartype_named("imu_bias"), 1)
+        ctx.state_variable("cam", "velocity", variable_type("imu_bias"), 1)
     with pytest.raises(ValueError, match="cam/pose declared as state pose3"):
         ctx.state_variable("cam", "pose", POSE2, 0)
-    bias = ctx.state_variable("cam", "bias", vartype_named("imu_bias"), 2)
+    bias = ctx.state_variable("cam", "bias", variable_type("imu_bias"), 2)
     assert ctx.keys.name_of(bias) == "cam/bias[2]"
     assert ctx.initial.atConstantBias(bias).vector().tolist() == [0.0] * 6
 
@@ -245,8 +246,8 @@ def test_declared_values_reach_the_values_once_with_the_last_value_set(context):
 def test_a_declared_array_is_copied_so_later_changes_to_it_do_not_leak_in(context):
     ctx = context
     velocity = np.array([1.0, 2.0, 3.0])
-    first = ctx.state_variable("cam", "velocity", vartype_named("velocity3"), 0, velocity)
-    second = ctx.state_variable("cam", "velocity", vartype_named("velocity3"), 1)
+    first = ctx.state_variable("cam", "velocity", variable_type("velocity3"), 0, velocity)
+    second = ctx.state_variable("cam", "velocity", variable_type("velocity3"), 1)
     velocity[:] = -1.0
     ctx.set_initial(second, velocity)
     velocity[:] = 7.0
