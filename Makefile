@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 # setuptools tells every editable install whose packages map folders (plugins/ -> fusionkit_plugins) that
 # folders named like a package in the working directory may shadow it: information only (InformationOnly), a
 # dozen lines on every first make; the filter matches that message alone.
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/pip install --quiet -e '.[test]'

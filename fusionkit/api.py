@@ -29,9 +29,9 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
 from .models.integration import held_intervals
 from .models.cable_robot import CableRobot, cable_robot
 from .models.planar import arc_path, differential_drive_twist, unicycle_increment
-from .robots.description import Parameter, RobotDescription, Sensor
-from .robots.checked import load_robot_description
-from .robots.registered import robot_description_data, robot_description_files
+from .descriptions.description import Parameter, RobotDescription, Sensor
+from .descriptions.checked import load_robot_description
+from .descriptions.registered import robot_description_data, robot_description_files
 from .report.writer import check_output_folder, write_output_folder
 from .models.simulation import (CLOCK_SCHEMA, POSE_NOISE_SCHEMA, clock_times, noisy, odometry, sample_times,
                                 smooth_trajectory)

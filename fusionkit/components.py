@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from .data.stream import Stream
     from .graph.builder import BuildContext
-    from .robots.description import RobotDescription
+    from .descriptions.description import RobotDescription
 
 
 @dataclass

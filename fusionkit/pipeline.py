@@ -31,7 +31,7 @@ from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
 from .progress import Progress
 from .threads import one_blas_thread
-from .robots.calibration_file import calibration_entries
+from .descriptions.calibration_file import calibration_entries
 from .solve import noise_scales, solve
 from .solve.identifiability import Identifiability, identifiability
 from .solve.result import SolveResult

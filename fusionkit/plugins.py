@@ -15,7 +15,7 @@ from . import hookspecs
 from .components import BUILTIN_COMMANDS, Command, FactorType, Initializer, RobotModel, Simulator, Source
 from .errors import PluginError
 from .graph.variables import VarType, vector_named
-from .robots.registered import KIND as DESCRIPTIONS, is_description_name
+from .descriptions.registered import KIND as DESCRIPTIONS, is_description_name
 
 ENTRY_POINT_GROUP = "fusionkit"
 BLOCK_ENV = "FUSIONKIT_BLOCK_PLUGINS"  # comma-separated entry-point names not to load
@@ -25,7 +25,7 @@ DEFAULT_PLUGINS = (
     "fusionkit.graph.variables",
     "fusionkit.data.builtin_sources",
     "fusionkit.data.static_segments",
-    "fusionkit.robots.generic",
+    "fusionkit.descriptions.generic",
     "fusionkit.models.cable_robot",
     "fusionkit.time_offset.guess",
     "fusionkit.sweep",

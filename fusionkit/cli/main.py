@@ -123,7 +123,7 @@ def _listed(reg, kind: str, name: str) -> dict:
     """One registered item for `fusionkit plugins`: a component's summary and schema, a command's
     summary and usage, or a robot description's summary and file."""
     from ..plugins import COMMANDS as PLUGIN_COMMANDS, VARIABLE_TYPES
-    from ..robots.registered import KIND as DESCRIPTIONS, robot_description_data
+    from ..descriptions.registered import KIND as DESCRIPTIONS, robot_description_data
     if kind == VARIABLE_TYPES:
         vartype = reg.get(kind, name)
         components, axes = vartype.names()

@@ -8,9 +8,9 @@ from typing import Any, Iterable
 
 from ..components import CheckScope, Spec
 from ..plugins import registry, variable_type
-from ..robots.calibration_file import apply_calibration, calibration_entries
-from ..robots.checked import check_with_model
-from ..robots.description import RobotDescription, load_description
+from ..descriptions.calibration_file import apply_calibration, calibration_entries
+from ..descriptions.checked import check_with_model
+from ..descriptions.description import RobotDescription, load_description
 from .defaults import with_defaults
 from .overrides import apply_override, new_key_note, parse_key_path
 from .schema import CONFIG_SCHEMA, NOISE_SCALE_SCHEMA, ROBUST_SCHEMA, SOLVER_TYPE_DEFAULTS, validate_against

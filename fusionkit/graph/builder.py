@@ -14,7 +14,7 @@ from ..config.loader import RunConfig
 from ..data.association import Association, nearest
 from ..data.stream import Stream
 from ..errors import PluginError
-from ..robots.description import Parameter, RobotDescription
+from ..descriptions.description import Parameter, RobotDescription
 from ..time_offset.config import TimeOffset
 from ..time_offset.measurement_states import MeasurementStates
 from .keys import STATE, STATIC, TIME_VARYING, Family, KeyRegistry

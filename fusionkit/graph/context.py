@@ -12,7 +12,7 @@ import gtsam
 from ..components import Spec
 from ..data.association import Association
 from ..data.stream import Stream
-from ..robots.description import RobotDescription
+from ..descriptions.description import RobotDescription
 from .builder import STATIC_TIME
 from .variables import VarType
 

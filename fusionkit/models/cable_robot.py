@@ -32,7 +32,7 @@ import numpy as np
 from ..components import RobotModel
 from ..config.fragments import GRAVITY
 from ..hookspecs import hookimpl
-from ..robots.description import RobotDescription
+from ..descriptions.description import RobotDescription
 from ..view.shapes import Lines, Points
 
 VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}

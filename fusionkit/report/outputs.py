@@ -15,9 +15,9 @@ from .. import __version__
 from ..data.files import write_tum
 from ..eval.states import StateSeries
 from ..pipeline import ParameterEstimate, RunResult
-from ..robots.calibration_file import calibration_entry
+from ..descriptions.calibration_file import calibration_entry
 from ..plugins import registry
-from ..robots.description import Parameter, RobotDescription
+from ..descriptions.description import Parameter, RobotDescription
 from .writer import write_files
 
 

@@ -35,4 +35,4 @@ def register_simulators():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "arash")  # robots/arash/ of the repository

@@ -28,7 +28,7 @@ def register_initializers():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "cable_rigid")  # robots/cable_rigid/ of the repository
 
 
 @hookimpl

@@ -30,4 +30,4 @@ def register_simulators():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "cable_sag")  # robots/cable_sag/ of the repository

@@ -36,7 +36,7 @@ def register_simulators():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "epuck")  # robots/epuck/ of the repository
 
 
 @hookimpl

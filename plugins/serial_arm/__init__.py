@@ -35,7 +35,7 @@ def register_simulators():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "serial_arm")  # robots/serial_arm/ of the repository
 
 
 @hookimpl

@@ -9,6 +9,7 @@ offset of one joint drifting smoothly during the run (a time-varying parameter).
 
 from __future__ import annotations
 
+from importlib.resources import files
 from pathlib import Path
 
 import gtsam
@@ -24,7 +25,7 @@ from .kinematics import parameters_of
 from .model import Arm, chain_from, couplings_of, kinematic_groups, tool_frames
 from .urdf import PREFIX, urdf_path
 
-ROBOTS = Path(__file__).parent / "robots"
+ROBOTS = Path(str(files("fusionkit_robots") / "serial_arm"))  # this family's shipped descriptions (robots/serial_arm/)
 DRIFT_PARAMETER = "drifting_offset"
 
 

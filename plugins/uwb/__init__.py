@@ -37,4 +37,4 @@ def register_sources():
 
 @hookimpl
 def register_robot_descriptions():
-    return robot_description_files(__name__)
+    return robot_description_files("fusionkit_robots", "uwb")  # robots/uwb/ of the repository

@@ -21,7 +21,7 @@ from fusionkit.solve.checks import check_solution
 
 REPO = Path(__file__).resolve().parents[2]
 SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
-ROBOT = REPO / "plugins" / "pose" / "robots" / "handheld_camera.yaml"
+ROBOT = REPO / "robots" / "pose" / "handheld_camera.yaml"
 FAST = ["--set", "sources.0.params.duration=5"]
 PREFIX = "fusionkit: error: "
 

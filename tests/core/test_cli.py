@@ -97,7 +97,7 @@ def test_plugins_lists_what_is_installed(capsys):
     assert main(["plugins"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    assert "fusionkit.data.builtin_sources" in lines and "fusionkit.robots.generic" in lines
+    assert "fusionkit.data.builtin_sources" in lines and "fusionkit.descriptions.generic" in lines
     for kind, name in [("source", "csv"), ("source", "tum"), ("source", "simulate"), ("robot model", "generic"),
                        ("factor type", "pose.absolute"), ("factor type", "pose.scaled_relative"),
                        ("initializer", "pose.dead_reckoning"), ("simulator", "pose.scaled_vo")]:

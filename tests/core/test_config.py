@@ -247,7 +247,7 @@ def test_errors_in_overridden_values_point_at_the_set_not_at_a_file_line():
 def _copy_scaled_vo(tmp_path: Path) -> Path:
     (tmp_path / "configs").mkdir()
     (tmp_path / "robots").mkdir()
-    shutil.copy(REPO / "plugins" / "pose" / "robots" / "handheld_camera.yaml", tmp_path / "robots")
+    shutil.copy(REPO / "robots" / "pose" / "handheld_camera.yaml", tmp_path / "robots")
     target = tmp_path / "configs" / "scaled_vo_mocap.yaml"
     target.write_text(SCALED_VO.read_text().replace("description: handheld_camera",
                                                     "description: ../robots/handheld_camera.yaml"))

@@ -24,7 +24,7 @@ def user_docs() -> list[Path]:
 
 
 def user_text_files() -> list[Path]:
-    return user_docs() + sorted((ROOT / "configs").glob("*.yaml")) + sorted((ROOT / "plugins").glob("*/robots/*.yaml"))
+    return user_docs() + sorted((ROOT / "configs").glob("*.yaml")) + sorted((ROOT / "robots").glob("*/*.yaml"))
 
 
 def slug(heading: str) -> str:

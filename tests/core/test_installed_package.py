@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-BUILD_INPUTS = ("pyproject.toml", "setup.py", "README.md", "fusionkit", "plugins")
+BUILD_INPUTS = ("pyproject.toml", "setup.py", "README.md", "fusionkit", "plugins", "robots")
 
 
 def _run(cmd: list, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -28,12 +28,13 @@ def _run(cmd: list, cwd: Path, timeout: float = 600) -> subprocess.CompletedProc
 
 
 def _repository_modules_and_descriptions() -> set[str]:
-    """Every module under fusionkit/ and plugins/ and every plugins/*/robots/*.yaml (and a URDF shipped beside
-    them), by the path a wheel stores it under (plugins/ is the package fusionkit_plugins)."""
+    """Every module under fusionkit/ and plugins/ and every robots/<family>/*.yaml (and a URDF shipped beside
+    them), by the path a wheel stores it under (plugins/ is the package fusionkit_plugins, robots/ the data
+    package fusionkit_robots)."""
     names = {str(p.relative_to(REPO)) for p in (REPO / "fusionkit").rglob("*.py")}
-    for p in [*(REPO / "plugins").rglob("*.py"), *(REPO / "plugins").glob("*/robots/*.yaml"),
-              *(REPO / "plugins").glob("*/robots/*.urdf")]:
-        names.add("fusionkit_plugins/" + str(p.relative_to(REPO / "plugins")))
+    names.update("fusionkit_plugins/" + str(p.relative_to(REPO / "plugins")) for p in (REPO / "plugins").rglob("*.py"))
+    for p in [REPO / "robots" / "__init__.py", *(REPO / "robots").glob("*/*.yaml"), *(REPO / "robots").glob("*/*.urdf")]:
+        names.add("fusionkit_robots/" + str(p.relative_to(REPO / "robots")))
     return names
 
 
@@ -84,13 +85,13 @@ def test_wheel_holds_exactly_the_modules_and_robot_descriptions(wheel):
     with zipfile.ZipFile(wheel) as z:
         stored = {n for n in z.namelist() if ".dist-info/" not in n}
     assert stored == _repository_modules_and_descriptions()
-    assert "fusionkit_plugins/cable_rigid/robots/arascam.yaml" in stored
+    assert "fusionkit_robots/cable_rigid/arascam.yaml" in stored
 
 
 def test_the_build_prints_no_setuptools_warning(wheel):
-    """Neither `[tool.setuptools]`'s "still beta" warning nor one "Package would be ignored" per plugin family
-    for its robots/ folder (a namespace package Python can import, package data here): the first `make`
-    printed some 350 lines of them."""
+    """Neither `[tool.setuptools]`'s "still beta" warning nor one "Package would be ignored" per family folder
+    of robots/ (a namespace package Python can import, package data here): the first `make` printed some 350
+    lines of them."""
     log = (wheel.parent.parent / "build.log").read_text()
     assert "Building wheel for fusionkit" in log  # the backend's output is there
     warned = [line for line in log.splitlines() if re.search(r"\w*Warning\b|is absent from the `packages`", line)
@@ -126,7 +127,7 @@ def test_simulate_from_another_folder_writes_the_shipped_robot_and_its_data(inst
     written description has its nominal pulleys, the data 30 Hz x 2 s of four cable lengths."""
     proc = _run([installed / "fusionkit", "simulate", "cable.cdpr", "--out", "sim", "--set", "duration=2"], tmp_path)
     assert proc.returncode == 0, proc.stderr
-    shipped = yaml.safe_load((REPO / "plugins" / "cable_rigid" / "robots" / "arascam.yaml").read_text())
+    shipped = yaml.safe_load((REPO / "robots" / "cable_rigid" / "arascam.yaml").read_text())
     written = yaml.safe_load((tmp_path / "sim" / "robots" / "cdpr.yaml").read_text())
     assert written["parameters"]["pulley"]["values"] == shipped["parameters"]["pulley"]["values"]
     lengths = (tmp_path / "sim" / "data" / "lengths.csv").read_text().split()

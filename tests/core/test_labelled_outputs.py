@@ -15,7 +15,7 @@ import fusionkit
 from fusionkit.cli.main import main
 from fusionkit.errors import ConfigError
 from fusionkit.report.outputs import calibration_text
-from fusionkit.robots.calibration_file import calibration_entry
+from fusionkit.descriptions.calibration_file import calibration_entry
 from fusionkit.simulate import write_dataset
 
 REPO = Path(__file__).resolve().parents[2]

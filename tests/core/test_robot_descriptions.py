@@ -21,7 +21,7 @@ from fusionkit.plugins import registry
 REPO = Path(__file__).resolve().parents[2]
 QUICKSTART = REPO / "configs" / "quickstart.yaml"
 SCALED_VO = REPO / "configs" / "scaled_vo_mocap.yaml"
-SHIPPED = sorted((REPO / "plugins").glob("*/robots/*.yaml"), key=lambda p: p.stem)
+SHIPPED = sorted((REPO / "robots").glob("*/*.yaml"), key=lambda p: p.stem)
 
 
 class DescriptionPlugin:
@@ -42,7 +42,7 @@ def test_every_shipped_description_is_registered_under_its_file_name_which_is_it
 
 def test_a_name_loads_the_packaged_file():
     desc = fusionkit.load_config(QUICKSTART).robots["cdpr"].description
-    shipped = REPO / "plugins" / "cable_rigid" / "robots" / "arascam.yaml"
+    shipped = REPO / "robots" / "cable_rigid" / "arascam.yaml"
     assert desc.doc.file == shipped
     pulleys = [list(p) for p in desc.parameters["pulley"].values]
     assert pulleys == yaml.safe_load(shipped.read_text())["parameters"]["pulley"]["values"]
@@ -66,7 +66,7 @@ def test_a_path_separator_or_yaml_suffix_makes_it_a_file_path(capsys, source):
 
 def test_a_plugins_description_is_loaded_by_name_and_listed(use_plugins, tmp_path, capsys):
     file = tmp_path / "rig.yaml"
-    file.write_text((REPO / "plugins" / "pose" / "robots" / "handheld_camera.yaml").read_text()
+    file.write_text((REPO / "robots" / "pose" / "handheld_camera.yaml").read_text()
                     .replace("value: 1.0", "value: 2.5"))
     use_plugins(DescriptionPlugin({"rig": file}))
     desc = fusionkit.load_config(SCALED_VO, ["robots.cam.description=rig"]).robots["cam"].description

@@ -21,7 +21,7 @@ from fusionkit.graph.noise import gaussian
 from fusionkit.graph.variables import POSE2, POSE3, SCALAR
 from fusionkit.plugins import variable_type, variable_type_names
 from fusionkit.pipeline import read_sources
-from fusionkit.robots.description import description_from_document
+from fusionkit.descriptions.description import description_from_document
 from fusionkit.testing import FactorExample, check_factor_contract
 
 # name -> (YAML value, dim)

@@ -13,7 +13,7 @@ from fusionkit.cli.main import main
 
 REPO = Path(__file__).resolve().parents[3]
 CONFIG = REPO / "configs" / "arash_pair.yaml"
-SHIPPED = REPO / "plugins" / "arash" / "robots" / "arash_asist.yaml"
+SHIPPED = REPO / "robots" / "arash" / "arash_asist.yaml"
 
 
 def edited_description(folder: Path, edit) -> Path:

@@ -184,7 +184,7 @@ def test_noise_free_data_give_back_the_truth_in_either_convention(convention):
 
 
 def test_a_time_varying_l_1234_gets_a_value_per_configuration_chained_by_the_random_walk(tmp_path):
-    arm = yaml.safe_load((CONFIG.parents[1] / "plugins" / "arash" / "robots" / "arash_asist.yaml").read_text())
+    arm = yaml.safe_load((CONFIG.parents[1] / "robots" / "arash" / "arash_asist.yaml").read_text())
     arm["parameters"]["l_1234"]["time_varying"] = True
     (tmp_path / "arm.yaml").write_text(yaml.safe_dump(arm))
     config = yaml.safe_load(CONFIG.read_text())
