@@ -28,8 +28,8 @@ import numpy as np
 from fusionkit.errors import SolverError
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.pose.imu import IMU_COLUMNS, integrate_held, preintegration_params
-from fusionkit_plugins.pose.imu_vo import ImuVoSimulator, body_path
+from fusionkit_plugins.imu.preintegrated import IMU_COLUMNS, integrate_held, preintegration_params
+from fusionkit_plugins.imu.simulator import ImuVoSimulator, body_path
 from _timing import table
 
 SCENARIO = "pose.imu_vo"

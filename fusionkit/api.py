@@ -28,6 +28,7 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
                               vector_type)
 from .models.integration import held_intervals
 from .models.cable_robot import CableRobot, cable_robot
+from .models.odometry import odometry_pairs, sensor_mount, stream_poses_at
 from .models.planar import arc_path, differential_drive_twist, unicycle_increment
 from .descriptions.description import Parameter, RobotDescription, Sensor
 from .descriptions.checked import load_robot_description
@@ -65,7 +66,8 @@ API_VERSION = "1.13"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      NAME_SCHEMA, POSITIVE_SCHEMA, NON_NEGATIVE_SCHEMA, GRAVITY (one definition for every family); arc_path;
 #      the `cdpr` robot model is the core's, read through CableRobot / cable_robot by every cable family
 # 1.13: variable types are plugins (hook register_variable_types): VarType carries its names, units, array form,
-#      retraction and interpolation; `between` may be None
+#      retraction and interpolation; `between` may be None; odometry_pairs, sensor_mount, stream_poses_at (a pose
+#      stream against a robot's states, shared by the pose and imu families)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -93,7 +95,7 @@ __all__ = [
     "CableRobot", "cable_robot",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment", "arc_path",
-    "differential_drive_twist",
+    "differential_drive_twist", "odometry_pairs", "sensor_mount", "stream_poses_at",
     # simulator building blocks and the factor contract
     "POSE_NOISE_SCHEMA", "noisy", "odometry", "sample_times", "smooth_trajectory", "FactorExample",
     "CLOCK_SCHEMA", "clock_times",

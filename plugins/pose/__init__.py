@@ -1,8 +1,9 @@
-"""Built-in `pose` plugin: generic pose, IMU and motion-model factors, initializers and simulators."""
+"""Built-in `pose` plugin: pose measurements of any robot (absolute, relative, scaled relative, the origin,
+co-registration of two robots), the random walk of a time-varying parameter, their initializers and
+simulators. The IMU and the motion models are families of their own (`imu`, `motion`)."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
-from . import imu, imu_vo, motion
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
@@ -12,17 +13,17 @@ FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (f
 
 @hookimpl
 def register_factor_types():
-    return FACTOR_TYPES + imu.FACTOR_TYPES + motion.FACTOR_TYPES
+    return FACTOR_TYPES
 
 
 @hookimpl
 def register_initializers():
-    return INITIALIZERS + imu.INITIALIZERS
+    return INITIALIZERS
 
 
 @hookimpl
 def register_simulators():
-    return SIMULATORS + [imu_vo.ImuVoSimulator]
+    return SIMULATORS
 
 
 @hookimpl

@@ -8,8 +8,8 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (POSE2, POSE3, POSE_COLUMNS, POSE_SIGMA_SCHEMA, SCALAR, TOLERANCE_SCHEMA, FactorExample,
-                           FactorType, gaussian, interpolate_poses, pose_parts, pose_sigmas, poses_from_array,
-                           segment_ids, Spec, Stream, vectorized_factor)
+                           FactorType, gaussian, odometry_pairs, pose_parts, pose_sigmas, poses_from_array, sensor_mount,
+                           Spec, Stream, vectorized_factor)
 
 from .residuals import CO_REGISTRATION, SCALED_BETWEEN
 
@@ -19,13 +19,6 @@ SIGMA = POSE_SIGMA_SCHEMA
 def to_pose2(p: gtsam.Pose3) -> gtsam.Pose2:
     """Project a 3-D pose onto the plane: x, y and yaw."""
     return gtsam.Pose2(p.x(), p.y(), p.rotation().yaw())
-
-
-def mount_of(ctx, spec: Spec) -> gtsam.Pose3:
-    """body_T_sensor of the entry's `sensor` (identity when the entry names none)."""
-    if "sensor" not in spec.data:
-        return gtsam.Pose3()
-    return ctx.robot(spec["robot"]).sensors[spec["sensor"]].mount
 
 
 def check_pose_stream_entry(spec: Spec, scope) -> None:
@@ -43,15 +36,6 @@ def check_sensor(spec: Spec, scope) -> None:
                              f"{', '.join(sorted(sensors)) or '(none)'}")
 
 
-def poses_at(stream, t: np.ndarray, max_gap: float | None = None) -> tuple[np.ndarray, list[gtsam.Pose3]]:
-    """(mask of the times inside the stream's span and not across a gap > max_gap, the stream's poses
-    at those times): its own poses when `t` are its stamps (states clocked by it), else interpolated."""
-    if np.array_equal(t, stream.t):
-        return np.ones(len(t), dtype=bool), stream.poses()
-    inside, arr = interpolate_poses(stream.t, stream.pose_array(), t, max_gap)
-    return inside, poses_from_array(arr)
-
-
 def dead_reckoned(start: gtsam.Pose3, before: list[gtsam.Pose3], after: list[gtsam.Pose3],
                   scale: float = 1.0) -> list[gtsam.Pose3]:
     """`start` followed by each increment before[i]^-1 after[i] composed onto the last pose, its translation
@@ -61,27 +45,6 @@ def dead_reckoned(start: gtsam.Pose3, before: list[gtsam.Pose3], after: list[gts
         d = a.between(b)
         poses.append(poses[-1].compose(gtsam.Pose3(d.rotation(), scale * d.translation())))
     return poses
-
-
-def odometry_pairs(ctx, spec: Spec, robot: str) -> tuple[np.ndarray, list[gtsam.Pose3], list[gtsam.Pose3]]:
-    """Consecutive states (ka, kb = ka + 1) with the stream's body poses interpolated at their times:
-    (every ka, the body poses at those ka, the body poses at their kb).
-
-    States outside the stream's time span, or inside a gap longer than `max_gap`, get none, and
-    no pair spans a gap (the count is reported, not silently dropped)."""
-    stream = ctx.stream(spec["stream"])
-    states = ctx.state_set(robot, spec)
-    inside, poses = poses_at(stream, states.t, spec.get("max_gap"))
-    idx = np.flatnonzero(inside)
-    if len(idx) < len(states):
-        ctx.note(f"{spec.label}: {len(states) - len(idx)} of {len(states)} states of {robot!r} lie "
-                         f"outside stream {stream.name!r} (or across a gap) and get no factor from it")
-    segment = segment_ids(stream.t, states.t[idx], spec.get("max_gap"))
-    if "sensor" in spec.data:  # sensor poses -> body poses
-        mount_inv = mount_of(ctx, spec).inverse()
-        poses = [p.compose(mount_inv) for p in poses]
-    js = np.flatnonzero((np.diff(idx) == 1) & (segment[1:] == segment[:-1])).tolist()  # consecutive, same stretch
-    return idx[js], [poses[j] for j in js], [poses[j + 1] for j in js]
 
 
 class AbsolutePose(FactorType):
@@ -105,7 +68,7 @@ class AbsolutePose(FactorType):
         assoc = ctx.associate(stream, robot, spec)
         planar = states.family.vartype is POSE2
         noise = ctx.noise(pose_sigmas(spec["sigma"], planar), spec)
-        mount_inv = mount_of(ctx, spec).inverse()
+        mount_inv = sensor_mount(ctx, spec).inverse()
         poses = poses_from_array(stream.pose_array()[assoc.row])
         for k, meas in zip(assoc.state, poses):
             body = meas.compose(mount_inv)

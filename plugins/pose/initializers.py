@@ -5,9 +5,9 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusionkit.api import POSE_COLUMNS, Initializer, nearest, poses_from_array, Spec
+from fusionkit.api import POSE_COLUMNS, Initializer, nearest, poses_from_array, Spec, stream_poses_at
 
-from .factors import dead_reckoned, poses_at, to_pose2
+from .factors import dead_reckoned, to_pose2
 
 
 def _set_poses(ctx, robot: str, poses: list[gtsam.Pose3]) -> None:
@@ -32,7 +32,7 @@ def _first_state_pose(ctx, robot: str) -> gtsam.Pose3:
 
 def _at_states(stream, t: np.ndarray) -> list[gtsam.Pose3]:
     """Stream poses at times t; times outside the stream's span take the nearest end pose."""
-    return poses_at(stream, np.clip(t, stream.t[0], stream.t[-1]))[1]
+    return stream_poses_at(stream, np.clip(t, stream.t[0], stream.t[-1]))[1]
 
 
 class DeadReckoning(Initializer):

@@ -254,7 +254,7 @@ def test_every_plugin_family_declares_the_api_it_is_written_for():
     from fusionkit.api import API_VERSION
     from fusionkit.plugins import _entry_points, api_mismatch
     own = [ep for dist, ep in _entry_points() if dist == "fusionkit"]
-    assert len(own) == 8
+    assert len(own) == 10  # pose, imu, motion, cable_rigid, cable_sag, uwb, serial_arm, arash, wheels, epuck
     for ep in own:
         declared = importlib.import_module(ep.value).FUSIONKIT_API
         assert declared == API_VERSION and api_mismatch(declared) is None

@@ -276,7 +276,7 @@ def check_scaled_vo(out: Path) -> None:
 
 
 def check_imu_vo_bag(out: Path) -> None:
-    """Scale within 3 sigma in batch and fixed-lag (the dropout's sigmas: tests/plugins/pose/test_imu_vo.py), the
+    """Scale within 3 sigma in batch and fixed-lag (the dropout's sigmas: tests/plugins/imu/test_imu_vo.py), the
     fixed-lag run rejected by the health check as the tutorial says; ROS 1 and ROS 2 bags of one seed give one
     estimate."""
     truth = yaml.safe_load((out / "imu_vo/truth/calibration.yaml").read_text())["robots"]["cam"]

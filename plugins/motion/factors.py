@@ -1,4 +1,4 @@
-"""Motion models between consecutive states of any robot.
+"""Motion models between consecutive states of any robot (the `motion` family).
 
 `odometry.diff_drive`: the wheel speeds of a differential-drive robot (SE(2) states), each held
 until the next sample, integrated into one native BetweenFactorPose2 per state interval.

@@ -17,9 +17,7 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (FactorExample, FactorType, GRAVITY, Initializer, NAME_SCHEMA as NAME, POSE_COLUMNS, Spec,
-                           VELOCITY3, held_intervals)
-
-from .factors import odometry_pairs
+                           VELOCITY3, held_intervals, odometry_pairs)
 
 if TYPE_CHECKING:
     from scipy.sparse import coo_matrix

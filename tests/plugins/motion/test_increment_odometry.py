@@ -12,7 +12,7 @@ import pytest
 
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
-from fusionkit_plugins.pose.motion import composed_arcs, increment_segments
+from fusionkit_plugins.motion.factors import composed_arcs, increment_segments
 
 BIAS = -0.0054  # rad/s: logged heading change = true + BIAS dt
 SIGMA = {"translation": 0.002, "rotation": 0.001}  # per sqrt(s)
