@@ -29,7 +29,7 @@ from fusionkit.errors import SolverError
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 from fusionkit_plugins.imu.preintegrated import IMU_COLUMNS, integrate_held, preintegration_params
-from fusionkit_plugins.imu.simulator import ImuVoSimulator, body_path
+from fusionkit_plugins.imu.simulators import ImuVoSimulator, body_path
 from _timing import table
 
 SCENARIO = "pose.imu_vo"

@@ -37,9 +37,9 @@ import numpy as np
 
 from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.serial_arm.batch import marker_poses
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
-from fusionkit_plugins.serial_arm.simulator import DRIFT_PARAMETER, drift_truth
+from fusionkit_plugins.serial_arm.simulators import DRIFT_PARAMETER, drift_truth
 
 from research import arm_experiments as arm
 from research import ur10_figaroh

@@ -89,7 +89,7 @@ def _write_overrides(folder: str, entries: dict) -> str:
 
 
 def _true_gyro() -> dict:
-    from fusionkit_plugins.wheels.simulator import WheelsSimulator
+    from fusionkit_plugins.wheels.simulators import WheelsSimulator
     gyro = WheelsSimulator.defaults["gyro"]
     return {"gyro_scale": (gyro["scale"], None), "gyro_bias": (gyro["bias"], None)}
 
@@ -117,7 +117,7 @@ def calibration_run(seed: int) -> dict:
     intrinsics as evaluation run `seed`, other noise) with the overhead camera."""
     from fusionkit.pipeline import estimate
     from fusionkit.simulate import simulated_config
-    from fusionkit_plugins.wheels.simulator import WheelsSimulator
+    from fusionkit_plugins.wheels.simulators import WheelsSimulator
 
     def with_camera(config):
         config["factors"].append({"type": "pose.absolute", "robot": "robot", "stream": "camera",
@@ -136,8 +136,8 @@ def one_run(job: tuple[str, int, float, str, dict | None]) -> dict:
     from fusionkit.api import SolverError
     from fusionkit.pipeline import estimate
     from fusionkit.simulate import simulated_config
-    from fusionkit_plugins.wheels.baseline import rule_poses, wheel_steps
-    from fusionkit_plugins.wheels.baseline import THRESHOLDS
+    from fusionkit_plugins.wheels.rule_odometry import rule_poses, wheel_steps
+    from fusionkit_plugins.wheels.rule_odometry import THRESHOLDS
     from fusionkit_plugins.wheels.model import drive_of
 
     fault, seed, duration, intrinsics, calibrated = job

@@ -20,7 +20,7 @@ from fusionkit.api import POSE3, pose_sigmas
 from fusionkit.config.loader import RunConfig, load_config
 from fusionkit.pipeline import RunResult, build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.serial_arm.batch import marker_poses
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.diagnosis import element_name
 from fusionkit_plugins.serial_arm.factors import entry_layout, pose_matrices
 from fusionkit_plugins.serial_arm.kinematics import parameters_of

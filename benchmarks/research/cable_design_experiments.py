@@ -25,7 +25,7 @@ from fusionkit.api import robot_description_data
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
 from fusionkit_plugins.cable_rigid.design import design_of, random_candidates, select
-from fusionkit_plugins.cable_rigid.simulator import Geometry, cables
+from fusionkit_plugins.cable_rigid.simulators import Geometry, cables
 
 ROBOT = "arascam"
 PULLEY_ERROR = 0.05   # m per axis: the true pulleys against the tape-measured nominal ones (cable.cdpr's default)

@@ -25,7 +25,7 @@ import yaml
 from fusionkit import load_config
 from fusionkit.api import nearest
 from fusionkit.config.loader import RunConfig
-from fusionkit_plugins.cable_rigid.simulator import ROBOT_NAME, CdprSimulator
+from fusionkit_plugins.cable_rigid.simulators import ROBOT_NAME, CdprSimulator
 
 
 SEQUENCES = ("dynamic", "smooth")  # the thesis's sequences 01 and 12

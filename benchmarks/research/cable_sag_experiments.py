@@ -27,7 +27,7 @@ from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
 from fusionkit_plugins.cable_sag.catenary import catenary
 from fusionkit_plugins.cable_sag.model import ROBOT_NAME, shipped_robot
-from fusionkit_plugins.cable_sag.simulator import PER_ROBOT, SagStaticSimulator
+from fusionkit_plugins.cable_sag.simulators import PER_ROBOT, SagStaticSimulator
 from fusionkit_plugins.cable_sag.static_solver import StaticsError, euler_zyx, inverse_pose
 from fusionkit_plugins.cable_sag.statics import SagRobot
 

@@ -23,7 +23,7 @@ from scipy.optimize import nnls
 
 from fusionkit.api import Choice, d_optimal, prior_information
 
-from .simulator import GRAVITY, Geometry, cables, home_position, nominal_geometry, workspace_extent
+from .simulators import GRAVITY, Geometry, cables, home_position, nominal_geometry, workspace_extent
 
 MIN_TENSION = 0.02  # of the weight: a candidate whose weakest cable would carry less is slack, not used
 STEP = 1e-6  # m or rad: central-difference step of the cable model

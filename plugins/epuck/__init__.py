@@ -7,9 +7,9 @@ from fusionkit.api import hookimpl, robot_description_files
 
 from .commands import COMMANDS
 from .factors import FACTOR_TYPES
-from .initializer import INITIALIZERS
+from .initializers import INITIALIZERS
 from .model import EpuckModel, WallMapModel
-from .simulator import SIMULATORS
+from .simulators import SIMULATORS
 
 FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 

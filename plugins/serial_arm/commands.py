@@ -13,7 +13,7 @@ from fusionkit.api import (Command, ConfigError, check_output_folder, compared_w
                            read_csv_stream, write_output_folder)
 
 from .selection import KINDS, design_of, select
-from .simulator import random_configurations
+from .simulators import random_configurations
 from .urdf import urdf_path
 
 DEFAULT_CANDIDATES = 1000  # random candidates when no file is given

@@ -17,7 +17,7 @@ import numpy as np
 
 from fusionkit.api import lie
 
-from .batch import marker_poses, pose_residuals, position_residuals
+from .vectorized_kinematics import marker_poses, pose_residuals, position_residuals
 from .kinematics import Layout, Parameters
 
 ROUNDS = 20

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import batch
+from . import vectorized_kinematics
 from .chain import SerialChain
 from .kinematics import Layout, Parameters
 from fusionkit.api import lie
@@ -36,12 +36,12 @@ def kinematic_regressor(chain: SerialChain, layout: Layout, p: Parameters, confi
     q = np.asarray(configurations, float)
     N = len(q)
     if kind == "relative":
-        a = batch.marker_poses(chain, layout, q[:, 0], p, True)
-        b = batch.marker_poses(chain, layout, q[:, 1], p, True)
+        a = vectorized_kinematics.marker_poses(chain, layout, q[:, 0], p, True)
+        b = vectorized_kinematics.marker_poses(chain, layout, q[:, 1], p, True)
         back = lie.adjoint(lie.inverse(lie.inverse(a.T) @ b.T))
         J = np.concatenate([y - back @ x for x, y in zip(a.blocks[1:], b.blocks[1:])] or [np.zeros((N, 6, 0))], axis=2)
     else:
-        poses = batch.marker_poses(chain, layout, q, p, True)
+        poses = vectorized_kinematics.marker_poses(chain, layout, q, p, True)
         J = np.concatenate(poses.blocks[1:] or [np.zeros((N, 6, 0))], axis=2)
         if kind == "position":
             J = poses.T[:, :3, :3] @ J[:, 3:]

@@ -1,5 +1,5 @@
 """The marker factors of one config entry as one vectorized residual (docs/models/serial_arm.md#speed): the
-forward kinematics and residuals of batch.py for every sample at once. An entry's factors read more than three
+forward kinematics and residuals of vectorized_kinematics.py for every sample at once. An entry's factors read more than three
 variables (joints, base, marker, offsets, placements, compliances), so fusionkit linearizes them one by one as
 CustomFactors, and its instance cache evaluates them all in one call per pass (fusionkit.api.pass_token).
 
@@ -14,7 +14,7 @@ import numpy as np
 
 from fusionkit.api import POINT3, POSE3, SCALAR, VectorizedResidual, vector_type
 
-from . import batch
+from . import vectorized_kinematics
 from .kinematics import Layout, parameters_from_arrays
 
 KINDS = ("pose", "position", "relative")
@@ -43,12 +43,12 @@ def marker_residual(chain, layout: Layout, kind: str) -> VectorizedResidual:
     def function(x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):
         p = parameters_from_arrays(layout, [shared(a) for a in x[joints:]])
         if kind == "relative":
-            a = batch.marker_poses(chain, layout, x[0], p, jacobians)
-            b = batch.marker_poses(chain, layout, x[1], p, jacobians)
-            e, blocks = batch.relative_residuals(a, b, data["measured"])
+            a = vectorized_kinematics.marker_poses(chain, layout, x[0], p, jacobians)
+            b = vectorized_kinematics.marker_poses(chain, layout, x[1], p, jacobians)
+            e, blocks = vectorized_kinematics.relative_residuals(a, b, data["measured"])
         else:
-            poses = batch.marker_poses(chain, layout, x[0], p, jacobians)
-            e, blocks = (batch.pose_residuals if kind == "pose" else batch.position_residuals)(poses, data["measured"])
+            poses = vectorized_kinematics.marker_poses(chain, layout, x[0], p, jacobians)
+            e, blocks = (vectorized_kinematics.pose_residuals if kind == "pose" else vectorized_kinematics.position_residuals)(poses, data["measured"])
         return (e, blocks) if jacobians else e
     return VectorizedResidual(f"arm.{kind}", variable_types(chain.n, layout, kind), 3 if kind == "position" else 6,
                               function)

@@ -1,5 +1,5 @@
 """The hold residual of the identifiability analysis (docs/models/serial_arm.md#identifiability); the
-marker residuals, evaluated for many samples at once, are in batch.py."""
+marker residuals, evaluated for many samples at once, are in vectorized_kinematics.py."""
 
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .labyrinth import SOURCES
 from .drone import UwbDroneSimulator
-from .simulator import SIMULATORS
+from .simulators import SIMULATORS
 
 FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 

@@ -31,7 +31,7 @@ from fusionkit.api import (CLOCK_SCHEMA, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG,
                            POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream, clock_times, pose_stream,
                            sample_times)
 
-from .simulator import ANCHORS
+from .simulators import ANCHORS
 
 VEHICLE = "drone"
 ANCHOR_POINTS = [[0.0, 0.0, 0.3], [10.0, 0.0, 2.7], [10.0, 8.0, 0.3], [0.0, 8.0, 2.7], [5.0, 0.0, 2.9],

@@ -4,19 +4,19 @@ dead-reckoning initialization and the wheels.sim fault simulator (models: docs/m
 
 from fusionkit.api import hookimpl, robot_description_files
 
-from .baseline import BASELINES
+from .rule_odometry import RULE_ODOMETRY
 from .factors import FACTOR_TYPES
 from .horizon import FACTOR_TYPES as LONG_HORIZON
 from .initializers import INITIALIZERS
 from .model import DiffDriveModel
-from .simulator import SIMULATORS
+from .simulators import SIMULATORS
 
 FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl
 def register_factor_types():
-    return FACTOR_TYPES + LONG_HORIZON + BASELINES
+    return FACTOR_TYPES + LONG_HORIZON + RULE_ODOMETRY
 
 
 @hookimpl

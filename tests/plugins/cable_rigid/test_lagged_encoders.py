@@ -10,7 +10,7 @@ import pytest
 
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.cable_rigid.simulator import ENCODER_OFFSET, ENCODER_RATE, CdprSimulator
+from fusionkit_plugins.cable_rigid.simulators import ENCODER_OFFSET, ENCODER_RATE, CdprSimulator
 
 SIM = CdprSimulator()
 QUIET = {"encoder_sigma": 0.0, "tension_sigma": 0.0, "tension_resolution": 0.0, "duration": 4.0, "rate": 50.0}

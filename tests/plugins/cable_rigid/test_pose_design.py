@@ -12,7 +12,7 @@ import pytest
 from fusionkit.api import compared_with_random, robot_description_data
 from fusionkit.cli.main import main
 from fusionkit_plugins.cable_rigid.design import candidate_blocks, design_of, random_candidates, select, taut
-from fusionkit_plugins.cable_rigid.simulator import cables, home_position
+from fusionkit_plugins.cable_rigid.simulators import cables, home_position
 from research.cable_design_experiments import case
 
 ENCODER, MOCAP = 1e-3, {"rotation": 2e-3, "translation": 1e-3}

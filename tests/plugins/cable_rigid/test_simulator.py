@@ -15,7 +15,7 @@ import fusionkit
 from fusionkit.cli.main import main
 from fusionkit.api import robot_description_data
 from fusionkit.data.stream import poses_from_array
-from fusionkit_plugins.cable_rigid.simulator import (CdprSimulator, Geometry, commanded_trajectory,
+from fusionkit_plugins.cable_rigid.simulators import (CdprSimulator, Geometry, commanded_trajectory,
                                                      encoder_readings, gravity_wrench, nominal_geometry,
                                                      wrench_matrix)
 from fusionkit_plugins.cable_rigid.kinematics import forward_kinematics

@@ -13,7 +13,7 @@ from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config, write_dataset
 from fusionkit_plugins.imu.preintegrated import (end_velocities, gravity_tilt, preintegrate, preintegration_params,
                                         scale_rows)
-from fusionkit_plugins.imu.simulator import ImuVoSimulator, body_path, imu_samples
+from fusionkit_plugins.imu.simulators import ImuVoSimulator, body_path, imu_samples
 
 SHORT = {"duration": 30.0, "dropout_start": 12.0, "dropout_duration": 6.0}
 NOISELESS = {"accel_density": 0.0, "gyro_density": 0.0, "accel_bias": 0.0, "gyro_bias": 0.0}

@@ -8,7 +8,7 @@ import pytest
 
 from fusionkit.api import robot_description_data
 from fusionkit.cli.main import main
-from fusionkit_plugins.serial_arm.simulator import ROBOTS
+from fusionkit_plugins.serial_arm.simulators import ROBOTS
 
 
 def config(description: dict, factors: list | None = None, states: dict | None = None) -> dict:

@@ -10,7 +10,7 @@ import pytest
 
 from fusionkit.pipeline import estimate
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.serial_arm.simulator import DRIFT_PARAMETER, drift_truth
+from fusionkit_plugins.serial_arm.simulators import DRIFT_PARAMETER, drift_truth
 
 PARAMS = {"motion": "trajectory", "duration": 60.0, "rate": 5.0, "drift": {"change": 0.004}}
 SOLVERS = {"batch": {"type": "batch"}, "isam2": {"type": "isam2"}, "fixed_lag": {"type": "fixed_lag", "lag": 5.0}}

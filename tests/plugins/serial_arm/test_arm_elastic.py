@@ -81,7 +81,7 @@ def test_the_compliance_file_beside_the_urdf_predicts_the_calibrated_deflected_p
     placements, the estimate's the nominal ones, a second-order difference), with and without a 5 kg payload; the payload moves the
     marker by more than 0.1 mm."""
     from fusionkit.report.outputs import calibrated_description
-    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
     from fusionkit_plugins.serial_arm.elastic import deflected_pose
     from fusionkit_plugins.serial_arm.export import urdf_output
     run = elastic
@@ -129,7 +129,7 @@ def test_lumped_masses_at_the_urdf_centres_of_mass_with_products_c_m_reproduce_t
     """Gravity torques depend on each link's mass and centre of mass only: unit masses at every link's URDF centre of
     mass, with products P_ji = c_j m_i, deflect the UR10 exactly as compliances c_j with the URDF's inertials (to
     1e-12 m), Jacobian blocks included (the product's block is the compliance's split by link)."""
-    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
     from fusionkit_plugins.serial_arm.factors import UR_JOINTS
     from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
     from fusionkit_plugins.serial_arm.model import chain_from
@@ -183,7 +183,7 @@ def test_products_of_compliance_and_lumped_masses_are_calibrated_and_reported_as
     assert "mass_compliance[shoulder_lift_joint].forearm_link" in d["sigma_from_data"]
     assert run.solution.chi2_per_dof < 1.5
     from fusionkit.api import load_robot_description
-    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
     from fusionkit_plugins.serial_arm.factors import entry_layout
     from fusionkit_plugins.serial_arm.kinematics import parameters_of
     from fusionkit_plugins.serial_arm.model import arm_of
@@ -215,7 +215,7 @@ def test_a_positive_compliance_lets_the_outstretched_arm_sag():
     positive shoulder-lift compliance lowers the flange, by compliance x torque x reach (measured 1.4 mm for
     1e-5 rad/(N m))."""
     from pathlib import Path
-    from fusionkit_plugins.serial_arm.batch import marker_poses
+    from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
     from fusionkit_plugins.serial_arm.factors import UR_JOINTS
     from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
     from fusionkit_plugins.serial_arm.model import chain_from

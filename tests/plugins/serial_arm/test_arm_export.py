@@ -21,7 +21,7 @@ from fusionkit.api import load_robot_description
 from fusionkit.cli.main import main
 from fusionkit.config.loader import load_config
 from fusionkit.report.outputs import calibrated_description
-from fusionkit_plugins.serial_arm.batch import marker_poses
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.export import urdf_output
 from fusionkit_plugins.serial_arm.kinematics import marker_pose
 

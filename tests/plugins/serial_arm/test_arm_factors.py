@@ -11,7 +11,7 @@ import pytest
 from fusionkit.testing import FactorExample, check_factor_contract, check_factor_example
 from fusionkit_plugins.serial_arm.diagnosis import hold_factor
 from fusionkit_plugins.serial_arm.factors import FACTOR_TYPES, example_arm
-from fusionkit_plugins.serial_arm.batch import marker_poses, pose_residuals, position_residuals
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses, pose_residuals, position_residuals
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters, marker_pose
 from fusionkit.plugins import registry
 

@@ -13,8 +13,8 @@ import yaml
 from fusionkit.cli.main import main
 from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
-from fusionkit_plugins.serial_arm.initializer import Degenerate, hand_eye
-from fusionkit_plugins.serial_arm.simulator import ArmSimulator
+from fusionkit_plugins.serial_arm.initializers import Degenerate, hand_eye
+from fusionkit_plugins.serial_arm.simulators import ArmSimulator
 
 from arm_helpers import typed
 

@@ -13,7 +13,7 @@ import pytest
 from fusionkit.api import load_robot_description
 from fusionkit.cli.main import main
 from fusionkit_plugins.serial_arm.selection import design_of, information, predicted_sigma, select
-from fusionkit_plugins.serial_arm.simulator import random_configurations
+from fusionkit_plugins.serial_arm.simulators import random_configurations
 
 POSE_SIGMA = np.full(6, 1e-4)
 

@@ -14,11 +14,11 @@ import pytest
 from fusionkit.api import lie, robot_description_data
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import estimate
-from fusionkit_plugins.serial_arm.batch import marker_poses
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.factors import entry_layout
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters, parameters_of
 from fusionkit_plugins.serial_arm.model import arm_of, chain_from, couplings_of
-from fusionkit_plugins.serial_arm.simulator import ROBOTS
+from fusionkit_plugins.serial_arm.simulators import ROBOTS
 from fusionkit_plugins.serial_arm.urdf import urdf_path
 
 from arm_helpers import typed

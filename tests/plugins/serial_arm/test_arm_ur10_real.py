@@ -13,7 +13,7 @@ import pytest
 from fusionkit.cli.main import main
 from fusionkit.config.loader import load_config
 from fusionkit.pipeline import build_problem, estimate, read_sources
-from fusionkit_plugins.serial_arm.batch import marker_poses
+from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
 from research import ur10_figaroh
 from research.arm_experiments import arm_layout, parameters, pose_errors, predicted, rms

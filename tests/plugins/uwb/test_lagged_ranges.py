@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusionkit_plugins.uwb.simulator import LEVER_ARM, ROOM, UwbSimulator, lissajous
+from fusionkit_plugins.uwb.simulators import LEVER_ARM, ROOM, UwbSimulator, lissajous
 
 SIM = UwbSimulator()
 QUIET = {"range_sigma": 0.0, "bias_sigma": 0.0, "bias_drift": 0.0, "wheel_sigma": 0.0, "duration": 5.0}

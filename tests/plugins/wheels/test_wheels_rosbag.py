@@ -147,7 +147,7 @@ def mean_rates(t: np.ndarray, imu_t: np.ndarray, gz: np.ndarray) -> np.ndarray:
 
 
 def test_baseline_with_the_bags_imu_as_gyro_stream_is_gyrodometry_on_its_mean_rates(workspace, recording):
-    """wheels.baseline (gyrodometry) with `gyro_stream: imu` on a ROS 2 bag (IMU covering the wheel stream)
+    """wheels.rule_odometry (gyrodometry) with `gyro_stream: imu` on a ROS 2 bag (IMU covering the wheel stream)
     gives the trajectory of the same rule on a CSV whose gyro column is the IMU's mean rate over each wheel
     interval, to 1e-9."""
     rec = dict(recording)
@@ -155,7 +155,7 @@ def test_baseline_with_the_bags_imu_as_gyro_stream_is_gyrodometry_on_its_mean_ra
     rec["gz"] = np.interp(rec["imu_t"], recording["imu_t"], recording["gz"])
     gyro = np.concatenate([[0.0], mean_rates(rec["t"], rec["imu_t"], rec["gz"])])
     write_csv(workspace.folder / "wheels.csv", rec["t"], {**rec["angles"], "gyro": gyro})
-    baseline = {"type": "wheels.baseline", "robot": "robot", "stream": "wheels", "method": "gyrodometry"}
+    baseline = {"type": "wheels.rule_odometry", "robot": "robot", "stream": "wheels", "method": "gyrodometry"}
     csv = config([{"type": "csv", "name": "wheels", "path": "wheels.csv"}], rec["description"])
     csv["factors"], csv["initializers"] = [csv["factors"][0], baseline], []
     bag = bag_config(write_bag(workspace.folder / "run_ros2", 2, rec), rec["description"])

@@ -20,7 +20,7 @@ from fusionkit.api import (ConfigError, NON_NEGATIVE_SCHEMA as NONNEG, POSE3, PO
 
 from .factors import entry_layout
 from .identifiability import analyze, kinematic_regressor
-from .batch import marker_poses
+from .vectorized_kinematics import marker_poses
 from .kinematics import parameters_of
 from .model import Arm, chain_from, couplings_of, kinematic_groups, tool_frames
 from .urdf import PREFIX, urdf_path

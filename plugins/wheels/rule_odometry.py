@@ -1,4 +1,4 @@
-"""`wheels.baseline`: a rule-based baseline (rules.py) run from a config, on the same wheel
+"""`wheels.rule_odometry`: a rule-based baseline (rules.py) run from a config, on the same wheel
 stream the graph uses (docs/models/wheels.md#baselines).
 
 The rule `method` dead-reckons the whole stream with the description's nominal parameters (radii,
@@ -79,8 +79,8 @@ def rule_poses(method: str, steps: rules.WheelSteps, thresholds: dict, reconstru
     return rules.final_version(steps, v, w, dw, dv)
 
 
-class Baseline(FactorType):
-    name = "wheels.baseline"
+class RuleOdometry(FactorType):
+    name = "wheels.rule_odometry"
     summary = ("rule-based dead reckoning of a wheel stream (odometry, gyrodometry, the passive-wheel paper's "
                "rules) as relative poses between consecutive states (native BetweenFactorPose2)")
     robot_fields = ("robot",)
@@ -153,4 +153,4 @@ class Baseline(FactorType):
         return FactorExample(gtsam.BetweenFactorPose2(0, 1, delta, gaussian([0.01, 0.01, 0.02])), values)
 
 
-BASELINES = [Baseline]
+RULE_ODOMETRY = [RuleOdometry]

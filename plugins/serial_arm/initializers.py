@@ -28,7 +28,7 @@ import numpy as np
 
 from fusionkit.api import Initializer, NAME_SCHEMA as NAME, POSE_COLUMNS, Spec, TOLERANCE_SCHEMA, nearest
 
-from .batch import marker_poses
+from .vectorized_kinematics import marker_poses
 from .factors import TOOL_FRAME, check_arm_entry, entry_arm, entry_layout, pose_matrices
 from .kinematics import Layout, Parameters
 from .model import marker_of, tool_frames
