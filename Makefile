@@ -21,7 +21,7 @@ setup: $(STAMP)
 # machines and containers often do) Python would compile its 20k lines anew in each process (about 1 s).
 # compileall writes the bytecode once (files already up to date are skipped).
 bytecode: $(STAMP)
-	$(BIN)/python -m compileall -q fusionkit plugins benchmarks examples
+	$(BIN)/python -m compileall -q fusionkit plugins benchmarks research examples
 
 quickstart: bytecode
 	$(BIN)/fusionkit run configs/quickstart.yaml --out out/quickstart

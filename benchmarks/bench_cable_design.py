@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.cable_design_experiments import case
 from _timing import run_parts, table, timed
 

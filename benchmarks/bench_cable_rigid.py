@@ -25,6 +25,7 @@ import numpy as np
 
 from fusionkit.pipeline import build_problem, read_sources
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.cable_rigid_experiments import (SEQUENCES, loaded_sequence, pseudo_measurement_gain, run_sequence,
                                               table_4_1)
 from _baselines import hand_fixed_lag, problem_data

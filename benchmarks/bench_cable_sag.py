@@ -32,6 +32,7 @@ from fusionkit.simulate import simulated_config
 from fusionkit_plugins.cable_sag.model import shipped_robot
 from fusionkit_plugins.cable_sag.static_solver import forward_pose, inverse_pose
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.cable_sag_experiments import (SCENARIO, SOURCE_CODE_POSE_SIGMA, SOURCE_TABLE_5_2, calibrate, errors,
                                             force_cross_validation, recurdyn_calibration, recurdyn_model_errors,
                                             recurdyn_poses, table_5_2)

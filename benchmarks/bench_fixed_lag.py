@@ -22,6 +22,7 @@ from fusionkit.simulate import simulated_config
 
 from _timing import latency_percentiles, median_of, run_parts, table
 from bench_wheels_speed import CAMERA, preintegrated
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.fixed_lag_nees import IDEAL, VO_SIGMA_HALVED, shares
 
 SCALED_VO = "configs/scaled_vo_mocap.yaml"

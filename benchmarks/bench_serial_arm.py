@@ -41,6 +41,7 @@ from fusionkit_plugins.serial_arm.vectorized_kinematics import marker_poses
 from fusionkit_plugins.serial_arm.kinematics import Layout, Parameters
 from fusionkit_plugins.serial_arm.simulators import DRIFT_PARAMETER, drift_truth
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research import arm_experiments as arm
 from research import ur10_figaroh
 from _baselines import hand_fixed_lag, problem_data

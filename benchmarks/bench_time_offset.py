@@ -28,6 +28,7 @@ from fusionkit.graph.noise import gaussian
 from fusionkit.graph.variables import POINT3, POSE3, SCALAR
 from fusionkit.time_offset.interpolation import Shift, Timing, shifted_factor
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.time_offset_experiments import DRONE_LAG, LAG, UWB, UWB_LAG, cable_case, drone_case, uwb_case
 from _timing import median_time, ratio, run_parts, table, us
 

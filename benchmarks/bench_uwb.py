@@ -31,6 +31,7 @@ import numpy as np
 from fusionkit.pipeline import build_problem, estimate, read_sources
 from fusionkit.simulate import simulated_config
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.external_data import external_data
 from research.uwb_experiments import (FIELD, FIELD_STARTS, SCENARIO, bias_models, field_starts, labyrinth,
                                      per_epoch_multilateration, position_rmse)

@@ -23,6 +23,7 @@ show (chi2/dof near 1) and with both entries' noise scales estimated from the da
 
 from __future__ import annotations
 
+import _repository  # noqa: F401,E402  (the repository root on sys.path: research/)
 from research.external_data import external_data
 from research.wheels_optiodom import (CIRCULAR, INCREMENTS, LONG_HORIZON, NAME, SQUARE, WheelParameters,
                                       checkpoint_fit, evaluate, graph_calibration, held_out, least_squares, load_session,

@@ -45,7 +45,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+import _repository  # noqa: F401  (the repository root on sys.path: research/)
 from _timing import table
+from research.wheels_turn_slip import trust_the_gyro
 
 PATHS = ("loop", "figure_eight", "square", "slalom", "random")
 DURATION = 30.0
@@ -92,20 +94,6 @@ def _true_gyro() -> dict:
     from fusionkit_plugins.wheels.simulators import WheelsSimulator
     gyro = WheelsSimulator.defaults["gyro"]
     return {"gyro_scale": (gyro["scale"], None), "gyro_bias": (gyro["bias"], None)}
-
-
-TURN_SLIP = {"sigma": 1e-4, "k": 3.0, "seed_rate": 0.03}  # rad per step; sigmas; rad/s (docs/models/wheels.md)
-
-
-def trust_the_gyro(config: dict) -> None:
-    """With a calibrated gyro: the driven wheels' turn may slip (one turn slip per step, seeded where the wheels
-    and the gyro disagree) and dead reckoning turns with the gyro. Nothing changes without a gyro."""
-    if not any(f["type"] == "wheels.gyro" for f in config["factors"]):
-        return
-    for f in config["factors"]:
-        if f["type"] == "wheels.encoder" and f.get("wheels") == ["left", "right"]:
-            f["turn_slip"] = dict(TURN_SLIP)
-    config["initializers"][0]["turn"] = "gyro"
 
 
 CALIBRATION = {"duration": 60.0, "path": "figure_eight"}  # the clean calibration run, with the camera

@@ -51,7 +51,7 @@ def _git(*args: str) -> str:
 
 def header(quick: bool) -> str:
     import gtsam
-    dirty = _git("status", "--porcelain", "--", "fusionkit", "plugins", "benchmarks/research")
+    dirty = _git("status", "--porcelain", "--", "fusionkit", "plugins", "research")
     gtsam_version = getattr(gtsam, "__version__", None)
     if gtsam_version is None:
         from importlib.metadata import version
@@ -66,7 +66,7 @@ def header(quick: bool) -> str:
         f"{os.cpu_count()} CPUs, {load}",
         f"fusionkit commit {_git('rev-parse', '--short', 'HEAD')}"
         + (f" + uncommitted changes in {len(dirty.splitlines())} file(s) under fusionkit/ plugins/ "
-           "benchmarks/research/" if dirty else ""),
+           "research/" if dirty else ""),
         "all ratios are fusionkit / hand-written (or / native), measured in this process; lower is better",
     ])
 

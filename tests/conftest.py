@@ -1,6 +1,6 @@
 """Shared helpers: configs and data files in a temporary folder, and a registry with extra plugins.
-The research code beside the benchmarks (benchmarks/research/: experiments, baselines, reference
-models, external data) is imported as `research.<module>`."""
+The research code (research/: experiments, baselines, reference models, external data; not installed)
+is imported as `research.<module>`: the repository root goes on sys.path, the benchmark folder does not."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import fusionkit.plugins
 from fusionkit.data.files import write_csv_stream, write_tum
 from fusionkit.data.stream import Stream, pose_stream
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # research/ (not installed) as `research.<module>`
 
 
 class Workspace:

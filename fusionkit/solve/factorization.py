@@ -10,7 +10,7 @@ anchors and time-varying biases along a 10,000-epoch trajectory, a VO scale, a r
 COLAMD's own cost and the elimination in its order grow faster than the graph, and METIS's nested
 dissection is faster: 9x on the UWB graph (0.21 s vs 1.9 s), and on a scaled-VO chain per state
 order + elimination 8.8 vs 6.1 us at 3,000 states, 19 vs 8.9 us at 10,000, 143 vs 10 us at 100,000
-(benchmarks/research/linear_assembly.py's graph). On a chain without such a variable COLAMD is faster
+(research/linear_assembly.py's graph). On a chain without such a variable COLAMD is faster
 (4.0 vs 6.9 us per state at 10,000). `solver.ordering: auto` (default) takes METIS when some variable
 is in more than METIS_DEGREE factors, else COLAMD.
 """

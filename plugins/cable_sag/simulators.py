@@ -42,7 +42,7 @@ BOX = {"type": "object", "properties": {"min": {"type": "array", "items": {"type
        "required": ["min", "max"], "additionalProperties": False}
 # the vision system's pose noise, the same for both robots: the thesis states only "centimetre-level
 # translation, small rotation" (the source's public simulation code uses 0.19 mm / 0.019 deg per
-# axis: benchmarks/research/cable_sag_experiments.py SOURCE_CODE_POSE_SIGMA, set it with pose_sigma)
+# axis: research/cable_sag_experiments.py SOURCE_CODE_POSE_SIGMA, set it with pose_sigma)
 POSE_SIGMA = {"rotation": 0.005, "translation": 0.01}
 # per robot: where the end-effector goes (the external finite-element poses span about this), the
 # initial error of the source's protocol, the force sensor's noise (about 1 % of the tension)

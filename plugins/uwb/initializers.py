@@ -7,7 +7,7 @@
    position by Gauss-Newton least squares (vectorized over states), minus the lever arm. The
    heading comes from the direction of travel (`heading: travel`, the planar default) or stays
    (`keep`, the 3-D default). This is also the per-epoch multilateration baseline of the
-   repository's benchmarks/research/uwb_experiments.py.
+   repository's research/uwb_experiments.py.
 2. Unknown anchors (`unknown:` indices): from those positions and their ranges, the closed-form
    range-origin fit shared with the cable plugins (fusionkit.geometry.fit_range_origin): anchor
    position and its constant bias, which initializes the robot's bias parameter when given.

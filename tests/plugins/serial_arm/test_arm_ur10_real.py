@@ -1,5 +1,5 @@
 """configs/arm_ur10_real.yaml on FIGAROH's real UR10 recording (23 static poses; ../shared/data/arm_ur10_figaroh,
-converted by benchmarks/research/ur10_figaroh.py): the conversion reproduces the README's nominal error, the
+converted by research/ur10_figaroh.py): the conversion reproduces the README's nominal error, the
 arm.hand_eye initializer starts the unknown base and marker within millimetres and milliradians of the
 calibrated ones, and the full calibration's in-sample error matches the README's (FIGAROH and scipy: 2.98 mm /
 0.337-0.338 deg). The leave-one-out comparison is in benchmarks/bench_serial_arm.py."""

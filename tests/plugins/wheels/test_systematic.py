@@ -1,4 +1,4 @@
-"""Systematic-calibration baselines (benchmarks/research/systematic.py) on hand-built runs with known
+"""Systematic-calibration baselines (research/systematic.py) on hand-built runs with known
 wheel diameters and axle length: UMBmark's correction factors, and the two-stage least-squares fit
 of radii and axle length from true poses."""
 

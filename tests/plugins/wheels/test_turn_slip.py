@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 import yaml
 
-from bench_wheels_sim import trust_the_gyro
 from fusionkit.config.yamlio import Document
 from fusionkit.pipeline import estimate
 from fusionkit.plugins import registry
 from fusionkit.simulate import simulated_config
+from research.wheels_turn_slip import trust_the_gyro
 from fusionkit_plugins.wheels.factors import encoder_factor
 from fusionkit_plugins.wheels.residuals import encoder_residual
 
@@ -46,7 +46,7 @@ def test_a_slip_adds_to_the_turn_the_wheel_sees_and_its_jacobian_is_the_central_
 
 def end_error(seed: int, slips: bool, folder: Path) -> float:
     """The graph's end position error on sliding square `seed`, the true intrinsics given and fixed; with
-    `slips`, the benchmark's turn slips for a calibrated gyro (bench_wheels_sim.trust_the_gyro)."""
+    `slips`, the benchmark's turn slips for a calibrated gyro (research.wheels_turn_slip.trust_the_gyro)."""
     simulator = registry().get("simulators", "wheels.sim")
     truth = simulator().simulate(simulator.resolve(SLIDE, Document(SLIDE, Path("<test>"))),
                                  np.random.default_rng(seed)).truth_calibration["robot"]

@@ -14,7 +14,7 @@ from fusionkit.config.loader import load_config
 from fusionkit.eval.trajectory import matched_positions
 from fusionkit.pipeline import estimate
 
-SCALED_VO = Path(__file__).resolve().parents[2] / "configs" / "scaled_vo_mocap.yaml"
+SCALED_VO = Path(__file__).resolve().parents[1] / "configs" / "scaled_vo_mocap.yaml"
 TRUE_SCALE = 2.5
 EVERY = 15  # every 15th state of 240: neighbouring states' errors are nearly the same sample
 IDEAL = np.array([norm.cdf(k) - norm.cdf(-k) for k in (1, 2, 3)]) * 100  # 68.3, 95.4, 99.7

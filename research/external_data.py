@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 ENV = "FUSIONKIT_SHARED_DATA"
-DEFAULT = Path(__file__).resolve().parents[2].parent / "shared" / "data"  # benchmarks/research/ -> repo/..
+DEFAULT = Path(__file__).resolve().parents[1].parent / "shared" / "data"  # research/ -> repo/..
 
 
 def external_data(name: str) -> Path:

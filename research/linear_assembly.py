@@ -13,7 +13,7 @@ every 100 states), two ways, with the same step as the check:
   through GaussianFactorGraph.sparseJacobian_, the normal equations solved by SuperLU (COLAMD), the step
   turned back into a VectorValues (one insert per variable) and retracted.
 
-Not part of fusionkit: a measurement to decide on. Run: python benchmarks/research/linear_assembly.py
+Not part of fusionkit: a measurement to decide on. Run: python research/linear_assembly.py
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ Pinocchio roll-pitch-yaw (phix1, phiy1, phiz1, rad: R = Rz(phiz) Ry(phiy) Rx(phi
 frame, and the six joint readings (rad) under their URDF names. `convert` writes them as two stream
 CSVs with the sample index as time: `joints.csv` (t + joint names) and `tracker.csv` (t x y z qx qy qz qw).
 
-    python benchmarks/research/ur10_figaroh.py OUT      # writes OUT/joints.csv, OUT/tracker.csv
+    python research/ur10_figaroh.py OUT      # writes OUT/joints.csv, OUT/tracker.csv
     fusionkit run configs/arm_ur10_real.yaml --set sources.0.path=OUT/joints.csv \\
         --set sources.1.path=OUT/tracker.csv [--set robots.arm.description.urdf=<dataset>/ur10.urdf]
 """
@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-if __package__ in (None, ""):  # run as a script: benchmarks/ on the path for `research.`
+if __package__ in (None, ""):  # run as a script: the repository root on the path for `research.`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from research.external_data import external_data  # noqa: E402
 
 DATASET = "arm_ur10_figaroh"
-CONFIG = Path(__file__).resolve().parents[2] / "configs" / "arm_ur10_real.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "arm_ur10_real.yaml"
 JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
           "wrist_3_joint")
 # README of the dataset: FIGAROH 1.0.2 and a scipy least-squares fit on the same file (mm, deg, s)
