@@ -67,7 +67,8 @@ API_VERSION = "1.13"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      the `cdpr` robot model is the core's, read through CableRobot / cable_robot by every cable family
 # 1.13: variable types are plugins (hook register_variable_types): VarType carries its names, units, array form,
 #      retraction and interpolation; `between` may be None; odometry_pairs, sensor_mount, stream_poses_at (a pose
-#      stream against a robot's states, shared by the pose and imu families)
+#      stream against a robot's states, shared by the pose and imu families); the ctx plugins receive has the
+#      BuildContext operations only (anything else: AttributeError)
 
 __all__ = [
     "API_VERSION", "hookimpl",

@@ -27,6 +27,7 @@ from .data.recordings import gaps
 from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions, position_consistency,
                               trajectory_errors)
 from .graph.builder import BuildContext, Problem, record_times, state_times
+from .graph.context import for_plugins
 from .graph.keys import STATE, TIME_VARYING, Family
 from .plugins import registry
 from .progress import Progress
@@ -131,19 +132,20 @@ def build_problem(config: RunConfig, streams: dict[str, Stream], progress: Progr
     reg = registry()
     ctx = BuildContext(config, streams)
     ctx.notes.extend(note for stream in streams.values() for note in stream.notes)
+    view = for_plugins(ctx)  # what the plugins see: the BuildContext protocol
     for spec in config.factors:
         _stage(progress, f"building {spec.label}")
-        reg.get("factor_types", spec.type)().build(ctx, spec)
+        reg.get("factor_types", spec.type)().build(view, spec)
     for spec in config.initializers:
         _stage(progress, f"initializing: {spec.label}")
         ctx.current_initializer = spec.label
-        reg.get("initializers", spec.type)().initialize(ctx, spec)
+        reg.get("initializers", spec.type)().initialize(view, spec)
     ctx.measurement_states.finish()
     ctx.require_values()
     separate_recordings(ctx, streams)
     for spec in config.factors:
         _stage(progress, f"diagnosing {spec.label}")
-        reg.get("factor_types", spec.type)().diagnose(ctx, spec)
+        reg.get("factor_types", spec.type)().diagnose(view, spec)
     return ctx.problem()
 
 
@@ -377,9 +379,9 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     for spec in config.factors:  # what each entry's factor type says of the estimate, and its sensor alone
         factor_type = reg.get("factor_types", spec.type)()
         if not solution.rejection:
-            problem.notes.extend(factor_type.review(problem.context, spec, solution.values))
+            problem.notes.extend(factor_type.review(for_plugins(problem.context), spec, solution.values))
         if spec.get("robot") in truth.trajectories:
-            for name, stream in factor_type.baseline(problem.context, spec, solution.values).items():
+            for name, stream in factor_type.baseline(for_plugins(problem.context), spec, solution.values).items():
                 baselines.setdefault(spec["robot"], {})[name] = stream
     timings["solve_s"] = solution.seconds
     report = _identifiability(config, problem, solution)

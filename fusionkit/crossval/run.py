@@ -10,6 +10,7 @@ from ..components import ResidualPart
 from ..config.loader import RunConfig, load_config
 from ..errors import ConfigError, FusionkitError
 from ..graph.builder import Problem
+from ..graph.context import for_plugins
 from ..parallel import run_tasks
 from ..pipeline import build_problem, read_sources
 from ..plugins import registry
@@ -54,7 +55,7 @@ def _build(config: RunConfig, plan: Plan, reference: tuple[str, ...]) -> Built:
                           "reads a reference (leave out the streams to predict)")
     streams, _ = read_sources(config)
     problem = build_problem(config, streams)
-    parts = {spec.label: ft.residual_parts(problem.context, spec) for ft, spec in entries}
+    parts = {spec.label: ft.residual_parts(for_plugins(problem.context), spec) for ft, spec in entries}
     return Built(config, problem, units(problem, plan), roles, parts)
 
 

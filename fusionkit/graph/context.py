@@ -1,7 +1,8 @@
 """The build context a plugin programs against (public as `fusionkit.api.BuildContext`, API 1.12): what
 `FactorType.build`, `FactorType.diagnose`/`review` and `Initializer.initialize` may ask of the `ctx` they receive.
-The concrete class (graph/builder.py) has more, for the core; a plugin that uses only these stays working
-across minor versions (tests/core/test_public_api.py checks every plugin in this repository does)."""
+The concrete class (graph/builder.py) has more, for the core; plugins are given a `PluginContext` (below) that has
+these and nothing else, so a plugin stays working across minor versions (tests/core/test_public_api.py also
+checks the source of every plugin in this repository)."""
 
 from __future__ import annotations
 
@@ -115,3 +116,29 @@ class BuildContext(Protocol):
 
 
 MEMBERS = frozenset(name for name in vars(BuildContext) if not name.startswith("_"))
+
+
+class PluginContext:
+    """The `ctx` a plugin receives: the core's build context seen through the protocol above. Every operation of
+    BuildContext is the core's own; anything else (its Values, key registry, factor records, config) is not
+    there, so a plugin cannot come to depend on it: AttributeError naming the protocol."""
+
+    def __init__(self, core: Any):
+        for name in MEMBERS:  # the core's bound methods, looked up once: as fast to call as on the core
+            object.__setattr__(self, name, getattr(core, name))
+
+    def __getattr__(self, name: str) -> Any:  # only for names not set above
+        raise AttributeError(f"ctx.{name} is not part of fusionkit.api.BuildContext, the context plugins are given "
+                             f"(docs/plugin_guide.md#the-buildcontext)")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"ctx.{name} cannot be set: a plugin changes the problem through ctx's operations")
+
+
+def for_plugins(core: Any) -> PluginContext:
+    """The plugin's view of a core build context (one per context)."""
+    view = getattr(core, "_plugin_view", None)
+    if view is None:
+        view = PluginContext(core)
+        core._plugin_view = view
+    return view

@@ -96,3 +96,25 @@ def test_the_core_build_context_implements_the_protocol_and_a_stray_use_is_caugh
     stray.write_text("def build(ctx, spec):\n    return ctx.initial.atPose3(0), ctx.keys.get('a', 'b')\n")
     from fusionkit.graph.context import MEMBERS
     assert [name for _, name in ctx_attributes(stray) if name not in MEMBERS] == ["initial", "keys"]
+
+
+def test_plugins_are_given_the_protocol_only_and_the_core_state_is_out_of_their_reach():
+    """The `ctx` a plugin's build receives answers every BuildContext operation with the core's own and refuses the
+    rest (ctx.initial, ctx.keys, ctx.records, ctx.config, ctx.add_record) with one line naming the protocol; it cannot
+    be assigned to."""
+    from fusionkit.config.loader import load_config
+    from fusionkit.graph.builder import BuildContext as Concrete
+    from fusionkit.graph.context import MEMBERS, for_plugins
+    from fusionkit.pipeline import read_sources
+    config = load_config(REPO / "configs" / "arm_calibration.yaml", ["sources.0.params.configurations=5"])
+    core = Concrete(config, read_sources(config)[0])
+    ctx = for_plugins(core)
+    assert ctx is for_plugins(core) and isinstance(ctx, fusionkit.api.BuildContext)
+    assert all(callable(getattr(ctx, name)) for name in MEMBERS)
+    assert ctx.robot("arm") is core.robot("arm")
+    for hidden in ("initial", "keys", "records", "config", "add_record", "notes"):
+        assert hasattr(core, hidden)
+        with pytest.raises(AttributeError, match=rf"ctx\.{hidden} is not part of fusionkit.api.BuildContext"):
+            getattr(ctx, hidden)
+    with pytest.raises(AttributeError, match="cannot be set"):
+        ctx.initial = None
