@@ -141,7 +141,10 @@ def _kind_label(kind: str) -> str:
     return "description" if kind == "robot_descriptions" else kind[:-1].replace("_", " ")
 
 
-COMMON_KEYS = {"factor_types": "label, robust {kernel, k}", "sources": "label", "initializers": "label"}
+COMMON_KEYS = {"factor_types": "label, robust {kernel, k}, noise_scale (a number or estimate)", "sources": "label",
+               "initializers": "label"}
+# factor types that pair samples with states by stamp (a `tolerance` key) also take a time offset
+TIME_OFFSET_KEYS = "time_offset {robot, parameter, rate, velocities}"
 
 
 def component_keys(reg, name: str) -> list[str]:
@@ -166,7 +169,10 @@ def component_keys(reg, name: str) -> list[str]:
         widths = [max((len(row[i]) for row in rows), default=0) for i in (0, 1)]
         lines += [f"  {key:<{widths[0]}}  {status:<{widths[1]}}  {what}" for key, status, what in rows]
         if kind in COMMON_KEYS:
-            lines.append(f"  (every entry also accepts: {COMMON_KEYS[kind]})")
+            common = COMMON_KEYS[kind]
+            if kind == "factor_types" and "tolerance" in item["schema"].get("properties", {}):
+                common += f", {TIME_OFFSET_KEYS}"
+            lines.append(f"  (every entry also accepts: {common})")
     if not lines:
         raise FusionkitError(f"nothing installed is called {name!r}; `fusionkit plugins` lists every name")
     return lines

@@ -244,6 +244,13 @@ class BuildContext:
             self._values.insert(key, self._pending.pop(key))
         return self.keys.decode(key)[0].vartype.read(self._values, key)
 
+    def forget(self, key: int) -> None:
+        """Undeclare a per-state variable no factor uses any more (the samples it was declared for were left out)."""
+        self.key_time.pop(key, None)
+        self.held.pop(key, None)
+        if self._pending.pop(key, None) is None and self._values.exists(key):
+            self._values.erase(key)
+
     def _declare(self, key: int, initial: Any, time: float) -> int:
         if key not in self.key_time:
             self.key_time[key] = time

@@ -164,11 +164,12 @@ class MeasurementStates:
             if m.shift is None:
                 outside[key] = m.offset.label
         vartype_of = lambda key: ctx.keys.decode(key)[0].vartype  # noqa: E731
-        kept = []
+        kept, left_out = [], set()
         for r in ctx.records:
             if r.label in self.labels:
                 shifts = [self.by_key[k].shift for k in r.factor.keys() if k in self.by_key]
                 if None in shifts:
+                    left_out.update(r.factor.keys())
                     continue
                 if shifts:
                     r.factor = shifted_factor(r.factor, shifts, vartype_of)
@@ -176,10 +177,26 @@ class MeasurementStates:
                     r.time = max(r.time, *(ctx.key_time[sh.window[-1]] for sh in shifts))
             kept.append(r)
         ctx.records[:] = kept
+        self._drop_orphans(left_out)
         for label in sorted(set(outside.values())):
             count = sum(v == label for v in outside.values())
             ctx.notes.append(f"time offset {label}: {count} sample(s) lie outside the states at the offset's initial "
                              "value and were not used")
+
+    def _drop_orphans(self, keys: set[int]) -> None:
+        """Per-state variables (a state's velocity, force, correction: not the states themselves) that only the
+        left-out factors used go with them: declared for those samples, nothing else determines them."""
+        ctx = self.ctx
+        used = {k for r in ctx.records for k in r.factor.keys()}
+        own = {states.family for states in ctx.states.values()}
+        orphans = [k for k in sorted(keys) if k not in used and k not in self.by_key and ctx.has_variable(k)
+                   and ctx.keys.decode(k)[0].kind == STATE and ctx.keys.decode(k)[0] not in own]
+        for k in orphans:
+            ctx.forget(k)
+        if orphans:
+            names = sorted({ctx.keys.decode(k)[0].name for k in orphans})
+            ctx.notes.append(f"{len(orphans)} per-state variable(s) ({', '.join(names)}) used only by those samples "
+                             "were left out with them")
 
     def initial_value(self, key: int):
         """The state a measurement-time key stands for, on the curve through the initial values."""

@@ -48,8 +48,9 @@ class SagForces(Initializer):
         pulleys = np.array([ctx.initial_value(ctx.parameter(name, "pulley", i)) for i in range(robot.n)])
         fallback = 0
         for k in range(len(ctx.state_set(name, spec))):
-            if not ctx.has_variable(forces.key(k)):
-                continue  # no static pose here
+            has_force, has_correction = ctx.has_variable(forces.key(k)), ctx.has_variable(corrections.key(k))
+            if not (has_force or has_correction):
+                continue  # no static pose here (the force sensor's and the lengths' samples may pick other states)
             X = ctx.initial_value(ctx.pose_key(name, k))
             R, t = X.rotation().matrix(), np.asarray(X.translation())
             f0, dR = initial_reference_force(R, t, pulleys, robot), ROT3.zero()
@@ -59,8 +60,10 @@ class SagForces(Initializer):
                     f0, dR = pose.f_ref, gtsam.Rot3(R.T @ pose.R)
                 except StaticsError:
                     fallback += 1
-            ctx.set_initial(forces.key(k), f0)
-            ctx.set_initial(corrections.key(k), dR)
+            if has_force:
+                ctx.set_initial(forces.key(k), f0)
+            if has_correction:
+                ctx.set_initial(corrections.key(k), dR)
         if fallback:
             ctx.note(f"{spec.label}: {fallback} pose(s) have no equilibrium with the guessed pulleys; "
                              "their forces start from V = m g / 4, H = V / tan(alpha) "

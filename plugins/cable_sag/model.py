@@ -48,6 +48,10 @@ def check_sag_robot(spec: Spec, scope, n: int) -> None:
     if robot.mass is None:
         raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg) or end_effector.weight "
                          "(N); the statics need it")
+    if robot.pulley_radius > 0:
+        raise spec.error("robot", f"robot {spec['robot']!r} has cables.pulley_radius {robot.pulley_radius:g} m: the "
+                         "sag model starts each catenary at a fixed exit point (the pulley parameter) and would ignore "
+                         "the radius; remove it here, or use the rigid cable factors (cable.length), which model it")
     if spec["reference"] >= n:
         raise spec.error("reference", f"cable index {spec['reference']} out of range: the robot has cables 0..{n - 1}")
 

@@ -172,7 +172,19 @@ def test_plugins_name_prints_the_keys_required_defaulted_and_optional(capsys):
         "  sensor     optional  a string",
         "  sigma      required  a mapping with keys rotation, translation",
         "  tolerance  0.005     a number >= 0",
-        "  (every entry also accepts: label, robust {kernel, k})"]
+        "  (every entry also accepts: label, robust {kernel, k}, noise_scale (a number or estimate), "
+        "time_offset {robot, parameter, rate, velocities})"]
+
+
+def test_plugins_name_lists_time_offset_only_for_factor_types_that_pair_samples_by_stamp(capsys):
+    """cable.sag pairs lengths with states by stamp (a tolerance): its time offset and noise scale are listed;
+    pose.origin pairs nothing: noise_scale only."""
+    assert main(["plugins", "cable.sag"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].endswith(
+        "noise_scale (a number or estimate), time_offset {robot, parameter, rate, velocities})")
+    assert main(["plugins", "pose.origin"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        "  (every entry also accepts: label, robust {kernel, k}, noise_scale (a number or estimate))")
 
 
 def test_plugins_name_of_nothing_installed_is_one_located_line_and_exit_2(capsys):
