@@ -1,11 +1,12 @@
 """`cable_sag` plugin: suspended cable robots with heavy, sagging cables (docs/models/cable_sag.md) --
-the catenary statics through one reference cable, the kinematic-static calibration factors, the
-fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
+the catenary statics through one reference cable, the kinematic-static calibration factors, cable lengths
+with sag at measured poses (cable.catenary), the fast static simulator. Installed through the `fusionkit` entry-point group like any third-party
 plugin; it builds on the rigid-cable plugin's `cdpr` robot model and `cdpr_small` description by name
 (through the registry), without importing or changing it."""
 
 from fusionkit.api import hookimpl, robot_description_files
 
+from . import catenary_factor
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
@@ -15,7 +16,7 @@ FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (f
 
 @hookimpl
 def register_factor_types():
-    return FACTOR_TYPES
+    return FACTOR_TYPES + catenary_factor.FACTOR_TYPES
 
 
 @hookimpl

@@ -1,0 +1,116 @@
+"""Light sagging cables at measured poses (issue: sagging cables on a real robot): the rigid model (`cable.length`)
+against the catenary at the measured pose (`cable.catenary`) on `cable.sag_static` data of the small robot
+(cdpr_small: 4.4 kg, 0.10 N/m cables of 5-13 m in the central workspace, where sag adds 0.5-9 mm to a cable), with motion
+capture of the end-effector. Each run calibrates on the first half of the static poses and predicts the cable
+lengths of the second half from their measured poses.
+
+    python research/cable_sag_light.py [--seeds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+if __package__ in (None, ""):  # run as a script: the repository root on the path for `research.`
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+MOCAP = {"rotation": 0.002, "translation": 0.001}  # rad, m
+LENGTH_SIGMA = 0.0005                               # m
+POSES = 40
+WORKSPACE = "{min: [-0.5, -3.0, -12.0], max: [1.0, 0.0, -3.0]}"  # every cable taut: sag 0.5-9 mm (median 2.4 mm)
+
+
+def dataset(folder: Path, seed: int, poses: int = POSES) -> Path:
+    from fusionkit.simulate import write_dataset
+    write_dataset("cable.sag_static", folder, ["robot=cdpr_small", f"poses={poses}", f"length_sigma={LENGTH_SIGMA}",
+                                               f"workspace={WORKSPACE}",
+                                               f"pose_sigma={{rotation: {MOCAP['rotation']}, translation: "
+                                               f"{MOCAP['translation']}}}"], seed=seed)
+    return folder
+
+
+def config(folder: Path, model: str, poses: int, weight_sigma: float | None = None) -> dict:
+    """The calibration on the first `poses` static poses: `rigid`, `catenary` (the description's weight per length)
+    or `catenary_weight` (the weight estimated from a prior of `weight_sigma` N/m around half the true value)."""
+    robot = yaml.safe_load((folder / "robots" / "cdpr.yaml").read_text())
+    robot["parameters"]["pulley"]["sigma"] = 2.0  # the nominal pulleys are a guess, ~1 m off
+    robot["parameters"]["offset"]["sigma"] = 2.0
+    entry = {"type": "cable.length", "robot": "cdpr", "stream": "lengths", "sigma": LENGTH_SIGMA}
+    if model != "rigid":
+        entry = {"type": "cable.catenary", "robot": "cdpr", "stream": "lengths", "sigma": LENGTH_SIGMA}
+    if model == "catenary_weight":
+        robot["parameters"]["cable_weight"] = {"type": "scalar", "value": 0.5 * robot["cables"]["weight_per_length"],
+                                               "sigma": weight_sigma, "unit": "N/m"}
+        entry["weight"] = "cable_weight"
+    (folder / "robots" / f"{model}.yaml").write_text(yaml.safe_dump(robot, sort_keys=False))
+    return {"name": f"light_{model}",
+            "robots": {"cdpr": {"description": f"robots/{model}.yaml", "states": {"stream": "poses", "end": poses - 0.5}}},
+            "sources": [{"type": "tum", "name": "poses", "path": "data/poses.tum"},
+                        {"type": "csv", "name": "lengths", "path": "data/lengths.csv"}],
+            "factors": [{"type": "pose.absolute", "robot": "cdpr", "stream": "poses", "sigma": MOCAP}, entry],
+            "initializers": [{"type": "pose.interpolate", "robot": "cdpr", "stream": "poses"}],
+            "solver": {"type": "batch", "method": "lm"}}
+
+
+def held_out_rms(folder: Path, model: str, result, first: int) -> float:
+    """RMS (m) of the held-out lengths predicted at their measured poses with the calibration."""
+    from fusionkit.data.files import read_csv_stream
+    from fusionkit_plugins.cable_sag.measured_geometry import catenary_lengths
+    from fusionkit_plugins.cable_sag.model import shipped_robot
+    robot, _ = shipped_robot("cdpr_small")
+    params = result.parameters["cdpr"]
+    pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
+    offsets = np.array([float(v) for v in params["offset"].values])
+    w = {"rigid": 0.0, "catenary": robot.cable_weight}.get(model)
+    if w is None:
+        w = float(params["cable_weight"].values[0])
+    rows = np.loadtxt(folder / "data" / "poses.tum")[first:]
+    from scipy.spatial.transform import Rotation
+    R, t = Rotation.from_quat(rows[:, 4:8]).as_matrix(), rows[:, 1:4]
+    z = read_csv_stream(folder / "data" / "lengths.csv", "lengths").values[first:]
+    predicted = catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments,
+                                 robot.com, robot.weight, np.full(len(t), w)) + offsets
+    return float(np.sqrt(np.mean((predicted - z) ** 2)))
+
+
+def run(seed: int, models=("rigid", "catenary", "catenary_weight"), poses: int = POSES) -> dict:
+    """{model: {pulley_mm (mean error), held_out_mm, chi2_dof, weight (value, sigma) where estimated}}."""
+    from fusionkit.config.loader import load_config
+    from fusionkit.pipeline import estimate
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = dataset(Path(tmp) / "ds", seed, poses)
+        truth = yaml.safe_load((folder / "truth" / "calibration.yaml").read_text())["robots"]["cdpr"]
+        true_pulleys = np.asarray(truth["pulley"]["values"], float)
+        for model in models:
+            path = folder / f"{model}.yaml"
+            path.write_text(yaml.safe_dump(config(folder, model, poses // 2, weight_sigma=0.2), sort_keys=False))
+            result = estimate(load_config(path))
+            pulleys = np.array([np.asarray(v, float) for v in result.parameters["cdpr"]["pulley"].values])
+            row = {"pulley_mm": 1e3 * float(np.mean(np.linalg.norm(pulleys - true_pulleys, axis=1))),
+                   "held_out_mm": 1e3 * held_out_rms(folder, model, result, poses // 2),
+                   "chi2_dof": float(result.solution.chi2_per_dof)}
+            if model == "catenary_weight":
+                est = result.parameters["cdpr"]["cable_weight"]
+                row["weight"] = (float(est.values[0]), float(est.sigma[0, 0]))
+            out[model] = row
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5)
+    args = parser.parse_args()
+    for seed in range(args.seeds):
+        for model, row in run(seed).items():
+            print(seed, model, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()})
+
+
+if __name__ == "__main__":
+    main()
