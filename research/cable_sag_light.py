@@ -23,6 +23,7 @@ if __package__ in (None, ""):  # run as a script: the repository root on the pat
 MOCAP = {"rotation": 0.002, "translation": 0.001}  # rad, m
 LENGTH_SIGMA = 0.0005                               # m
 POSES = 40
+STATICS_SIGMA = {"force": 0.05, "moment": 0.05}     # N, N m: the approximation's misfit at exact equilibria (0.01-0.04)
 WORKSPACE = "{min: [-0.5, -3.0, -12.0], max: [1.0, 0.0, -3.0]}"  # every cable taut: sag 0.5-9 mm (median 2.4 mm)
 
 
@@ -49,12 +50,19 @@ def config(folder: Path, model: str, poses: int, weight_sigma: float | None = No
         robot["parameters"]["cable_weight"] = {"type": "scalar", "value": 0.5 * robot["cables"]["weight_per_length"],
                                                "sigma": weight_sigma, "unit": "N/m"}
         entry["weight"] = "cable_weight"
+    factors = [{"type": "pose.absolute", "robot": "cdpr", "stream": "poses", "sigma": MOCAP}, entry]
+    if model == "catenary_statics":  # the force and moment balance as a constraint, the centre of mass estimated
+        robot["parameters"]["centre_of_mass"] = {"type": "point3", "value": robot["end_effector"]["com"],
+                                                 "sigma": 0.05, "unit": "m"}
+        entry["com"] = "centre_of_mass"
+        factors.append({"type": "cable.statics", "robot": "cdpr", "stream": "lengths", "com": "centre_of_mass",
+                        "sigma": STATICS_SIGMA})
     (folder / "robots" / f"{model}.yaml").write_text(yaml.safe_dump(robot, sort_keys=False))
     return {"name": f"light_{model}",
             "robots": {"cdpr": {"description": f"robots/{model}.yaml", "states": {"stream": "poses", "end": poses - 0.5}}},
             "sources": [{"type": "tum", "name": "poses", "path": "data/poses.tum"},
                         {"type": "csv", "name": "lengths", "path": "data/lengths.csv"}],
-            "factors": [{"type": "pose.absolute", "robot": "cdpr", "stream": "poses", "sigma": MOCAP}, entry],
+            "factors": factors,
             "initializers": [{"type": "pose.interpolate", "robot": "cdpr", "stream": "poses"}],
             "solver": {"type": "batch", "method": "lm"}}
 
@@ -68,15 +76,16 @@ def held_out_rms(folder: Path, model: str, result, first: int) -> float:
     params = result.parameters["cdpr"]
     pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
     offsets = np.array([float(v) for v in params["offset"].values])
-    w = {"rigid": 0.0, "catenary": robot.cable_weight}.get(model)
+    w = {"rigid": 0.0, "catenary": robot.cable_weight, "catenary_statics": robot.cable_weight}.get(model)
     if w is None:
         w = float(params["cable_weight"].values[0])
     rows = np.loadtxt(folder / "data" / "poses.tum")[first:]
     from scipy.spatial.transform import Rotation
     R, t = Rotation.from_quat(rows[:, 4:8]).as_matrix(), rows[:, 1:4]
     z = read_csv_stream(folder / "data" / "lengths.csv", "lengths").values[first:]
+    com = np.asarray(params["centre_of_mass"].values[0], float) if "centre_of_mass" in params else robot.com
     predicted = catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments,
-                                 robot.com, robot.weight, np.full(len(t), w)) + offsets
+                                 com, robot.weight, np.full(len(t), w)) + offsets
     return float(np.sqrt(np.mean((predicted - z) ** 2)))
 
 
@@ -105,6 +114,9 @@ def run(seed: int, models=("rigid", "catenary", "catenary_weight"), poses: int =
             if model == "catenary_weight":
                 est = result.parameters["cdpr"]["cable_weight"]
                 row["weight"] = (float(est.values[0]), float(est.sigma[0, 0]))
+            if model == "catenary_statics":
+                est = result.parameters["cdpr"]["centre_of_mass"]
+                row["com"] = [round(float(c), 4) for c in est.values[0]]
             out[model] = row
     return out
 
@@ -113,9 +125,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--com-error", type=float, default=0.0, help="m: the true centre of mass off the description's")
+    parser.add_argument("--models", nargs="+", default=["rigid", "catenary", "catenary_weight"],
+                        help="rigid, catenary, catenary_weight, catenary_statics (with cable.statics, the centre of "
+                             "mass estimated)")
     args = parser.parse_args()
     for seed in range(args.seeds):
-        for model, row in run(seed, com_error=args.com_error).items():
+        for model, row in run(seed, tuple(args.models), com_error=args.com_error).items():
             print(seed, model, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()})
 
 

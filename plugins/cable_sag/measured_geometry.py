@@ -27,36 +27,53 @@ STATICS_ROUNDS = 3  # statics with the chord's direction, then twice with the ca
 MIN_TENSION_SHARE = 1e-3
 
 
-def balancing_tensions(R: np.ndarray, directions: np.ndarray, attachments: np.ndarray, com: np.ndarray,
-                       weight: float) -> np.ndarray:
-    """Least-squares cable tensions (N, n) (N) along unit `directions` (N, n, 3) (each cable's pull on the
-    end-effector at its attachment) that balance the weight at orientations R (N, 3, 3)."""
+def _wrench(R: np.ndarray, directions: np.ndarray, attachments: np.ndarray, com: np.ndarray, weight: np.ndarray):
+    """(W (N, n, 6), the weight's wrench (N, 6)): W^T tau is the wrench of tensions tau along unit `directions`
+    (N, n, 3) (each cable's pull at its attachment) at orientations R; the weight (N,) acts at com (N, 3)."""
     r = np.einsum("kij,nj->kni", R, attachments)
-    W = np.concatenate([directions, np.cross(r, directions)], axis=2)  # (N, n, 6): W^T tau is the cables' wrench
-    gravity = np.array([0.0, 0.0, -weight])
-    arm = R @ com
-    wrench = np.concatenate([np.broadcast_to(gravity, arm.shape), np.cross(arm, gravity)], axis=1)  # (N, 6)
+    W = np.concatenate([directions, np.cross(r, directions)], axis=2)
+    gravity = np.zeros((len(R), 3))
+    gravity[:, 2] = -weight
+    arm = np.einsum("kij,kj->ki", R, com)
+    return W, np.concatenate([gravity, np.cross(arm, gravity)], axis=1)
+
+
+def balancing_tensions(W: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+    """Least-squares tensions (N, n) (N): W^T tau as close to -wrench as the cables can pull."""
     normal = np.einsum("kni,kmi->knm", W, W)
     return np.linalg.solve(normal, -np.einsum("kni,ki->kn", W, wrench)[..., None])[..., 0]
 
 
-def catenary_lengths(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com: np.ndarray,
-                     weight: float, w: np.ndarray) -> np.ndarray:
-    """Arc lengths (N, n) (m) of cables of weight w (N,) (N/m) from pulleys (N, n, 3) to the attachments of poses
-    R (N, 3, 3), t (N, 3), the end-effector weighing `weight` (N) with centre of mass `com` (body frame)."""
+def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight, w):
+    """(arc lengths (N, n) (m), the wrench the cables leave unbalanced (N, 6) (N, N m)) of cables of weight w (N/m)
+    from pulleys (N, n, 3) to the attachments of poses R (N, 3, 3), t (N, 3), the end-effector weighing `weight`
+    (N) with centre of mass `com` (m, body frame); w, weight (N,) or scalars, com (N, 3) or (3,)."""
+    n_poses = len(R)
+    weight = np.broadcast_to(np.asarray(weight, float), (n_poses,))
+    com = np.broadcast_to(np.asarray(com, float), (n_poses, 3))
     chord = pulleys - (np.einsum("kij,nj->kni", R, attachments) + t[:, None, :])
     span = np.maximum(np.hypot(chord[..., 0], chord[..., 1]), 1e-9)
     rise = chord[..., 2]
     level = chord * np.array([1.0, 1.0, 0.0]) / span[..., None]  # s_i: horizontal unit vector towards the pulley
-    w = np.broadcast_to(np.asarray(w, float)[:, None], span.shape)
+    w = np.broadcast_to(np.asarray(w, float).reshape(-1, 1), span.shape)
     directions = chord / np.linalg.norm(chord, axis=2, keepdims=True)
     for _ in range(STATICS_ROUNDS):  # the pull's direction at the attachment: the chord first, then the catenary's
-        tension = balancing_tensions(R, directions, attachments, com, weight)
-        H = np.maximum(tension * np.hypot(directions[..., 0], directions[..., 1]), MIN_TENSION_SHARE * weight)
+        W, wrench = _wrench(R, directions, attachments, com, weight)
+        tension = balancing_tensions(W, wrench)
+        H = np.maximum(tension * np.hypot(directions[..., 0], directions[..., 1]),
+                       MIN_TENSION_SHARE * weight[:, None])
         V = H * rise / span
         for _ in range(NEWTON_STEPS):
             _, reached, _, d_rise = catenary(H, V, span, w, jacobian=True)
             V = V - (reached - rise) / d_rise[..., 1]
         pull = H[..., None] * level + V[..., None] * np.array([0.0, 0.0, 1.0])
         directions = pull / np.linalg.norm(pull, axis=2, keepdims=True)
-    return catenary(H, V, span, w)[0]
+    W, wrench = _wrench(R, directions, attachments, com, weight)
+    forces = np.linalg.norm(pull, axis=2)
+    return catenary(H, V, span, w)[0], np.einsum("kni,kn->ki", W, forces) + wrench
+
+
+def catenary_lengths(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight,
+                     w) -> np.ndarray:
+    """The arc lengths (N, n) (m) of `hanging`."""
+    return hanging(R, t, pulleys, attachments, com, weight, w)[0]
