@@ -40,7 +40,7 @@ from .solve.identifiability import parameter_indices
 from .testing import FactorExample
 from .view.shapes import Lines, Points
 
-API_VERSION = "1.13"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
+API_VERSION = "1.14"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec), schema defaults applied at load
 # 1.2: RobotModel.outputs, Command (hook register_commands), load_robot_description, read_csv_stream,
 #      check_output_folder, write_output_folder
 # 1.3: `time_offset:` on entries that associate by stamp (measurement-time indices), ctx.state_index,
@@ -69,6 +69,7 @@ API_VERSION = "1.13"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      retraction and interpolation; `between` may be None; odometry_pairs, sensor_mount, stream_poses_at (a pose
 #      stream against a robot's states, shared by the pose and imu families); the ctx plugins receive has the
 #      BuildContext operations only (anything else: AttributeError)
+# 1.14: ctx.sigma(key): after solving (FactorType.review), a variable's 1-sigma per tangent axis
 
 __all__ = [
     "API_VERSION", "hookimpl",

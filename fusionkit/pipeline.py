@@ -376,6 +376,7 @@ def _estimate(config: RunConfig, progress: Progress | None) -> RunResult:
     if solution.rejection:  # a model error diagnosed from an estimate that does not fit would mislead
         problem.notes.append("the factor types' checks of the estimate (e.g. range biases that grow with distance) "
                              "were not made: the solve was rejected, its estimate is no basis for them")
+    problem.context.record_marginals(solution.covariances)  # ctx.sigma in the reviews
     for spec in config.factors:  # what each entry's factor type says of the estimate, and its sensor alone
         factor_type = reg.get("factor_types", spec.type)()
         if not solution.rejection:

@@ -30,9 +30,12 @@ FIXED_SIGMA = 1e-9  # prior sigma (per tangent axis, SI units) that holds a `fix
 
 def state_times(states: dict, streams: dict[str, Stream]) -> np.ndarray:
     """The times (s) of a robot's states from its (completed) `states:` settings: every `every`-th
-    stamp of `stream`, or `rate` Hz from `start` to `end` (default: the stream's first and last stamp)."""
+    stamp of `stream` (those in [`start`, `end`] when given), or `rate` Hz from `start` to `end` (default: the
+    stream's first and last stamp)."""
     if "rate" not in states:
-        return streams[states["stream"]].t[:: states.get("every", 1)]
+        t = streams[states["stream"]].t
+        t = t[(t >= states.get("start", -np.inf)) & (t <= states.get("end", np.inf))]
+        return t[:: states.get("every", 1)]
     span = streams[states["stream"]].t if "stream" in states else None
     start = states.get("start", span[0] if span is not None else 0.0)
     end = states.get("end", span[-1] if span is not None else start)
@@ -146,6 +149,7 @@ class BuildContext:
         self.states: dict[str, StateSet] = {}
         self.fixed_keys: set[int] = set()
         self.held: dict[int, Held] = {}
+        self._marginals: dict[int, np.ndarray] = {}  # after solving: marginal covariances (tangent) by key
         self.awaiting_value: dict[int, list[str]] = {}  # [robot, parameter] the description gives no value
         self.value_source: dict[str, str] = {}  # such a parameter's name -> the initializer that set it
         self.current_initializer = ""
@@ -193,6 +197,17 @@ class BuildContext:
     def has_variable(self, key: int) -> bool:
         """Whether a factor (or initializer) declared variable `key`."""
         return key in self.key_time
+
+    def sigma(self, key: int) -> np.ndarray | None:
+        """After solving (in FactorType.review): the 1-sigma of variable `key` along its tangent axes (its marginal
+        covariance's diagonal); None before solving or where no covariance was computed (the run computes them for
+        every calibration parameter)."""
+        cov = self._marginals.get(key)
+        return None if cov is None else np.sqrt(np.diag(cov))
+
+    def record_marginals(self, covariances: dict[int, np.ndarray]) -> None:
+        """The solve's marginal covariances, for `sigma` in the reviews that follow."""
+        self._marginals = dict(covariances)
 
     def initial_values(self) -> gtsam.Values:
         """A copy of the initial values of every declared variable (for a plugin's own local solve or error; set

@@ -75,6 +75,9 @@ class BuildContext(Protocol):
     def initial_value(self, key: int) -> Any:
         """Its current initial value, typed (gtsam.Pose3, numpy vector, float, ...)."""
 
+    def sigma(self, key: int) -> Any:
+        """After solving (FactorType.review): the variable's 1-sigma per tangent axis, or None (API 1.14)."""
+
     def initial_values(self) -> gtsam.Values:
         """A copy of every declared variable's initial value (for a plugin's own local solve)."""
 

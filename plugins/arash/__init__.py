@@ -10,7 +10,7 @@ from .initializers import INITIALIZERS
 from .model import RcmArmModel
 from .simulators import SIMULATORS
 
-FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.14"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

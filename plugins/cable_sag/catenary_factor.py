@@ -32,6 +32,7 @@ from .static_solver import inverse_pose
 
 ESTIMABLE = {"weight": SCALAR, "mass": SCALAR, "com": POINT3}  # entry key -> the parameter's type
 ESTIMABLE_SCHEMA = {key: NAME_SCHEMA for key in ESTIMABLE}
+DETECTABLE = 2.0  # sigmas from zero a weight per length must be for the sag to count as seen in the data
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,22 @@ class CatenaryCable(FactorType):
 
     def residual_parts(self, ctx, spec: Spec) -> list[ResidualPart]:
         return [ResidualPart("length", "m", tuple(range(cable_robot(ctx.robot(spec["robot"])).n)))]
+
+    def review(self, ctx, spec: Spec, values) -> list[str]:
+        """With the weight per length estimated: whether the data support sag at all (the estimate more than two
+        sigmas from zero), in one sentence."""
+        if "weight" not in spec.data:
+            return []
+        key = ctx.parameter(spec["robot"], spec["weight"])
+        sigma = ctx.sigma(key)
+        if sigma is None:
+            return []
+        w, s = values.atDouble(key), float(sigma[0])
+        if abs(w) < DETECTABLE * s:
+            return [f"{spec.label}: sag not detectable: the cables' weight per length {w:.3g} +- {s:.2g} N/m is within "
+                    f"{DETECTABLE:g} sigmas of zero; straight cables (cable.length) explain these lengths as well"]
+        return [f"{spec.label}: sag detected: the cables' weight per length is {w:.3g} +- {s:.2g} N/m "
+                f"({abs(w) / s:.1f} sigmas from zero)"]
 
     def check(self, spec: Spec, scope) -> None:
         n = check_hanging(spec, scope)

@@ -6,7 +6,7 @@ from fusionkit.api import hookimpl
 from .preintegrated import FACTOR_TYPES, INITIALIZERS
 from .simulators import ImuVoSimulator
 
-FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.14"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

@@ -5,7 +5,7 @@ from fusionkit.api import hookimpl
 
 from .factors import FACTOR_TYPES
 
-FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.14"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

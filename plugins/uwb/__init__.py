@@ -12,7 +12,7 @@ from .labyrinth import SOURCES
 from .drone import UwbDroneSimulator
 from .simulators import SIMULATORS
 
-FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.14"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

@@ -11,7 +11,7 @@ from .initializers import INITIALIZERS
 from .model import DiffDriveModel
 from .simulators import SIMULATORS
 
-FUSIONKIT_API = "1.13"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
+FUSIONKIT_API = "1.14"  # the fusionkit plugin API this family is written for (fusionkit.api.API_VERSION)
 
 
 @hookimpl

@@ -173,3 +173,16 @@ def test_a_robot_whose_estimated_states_miss_the_truth_gets_no_ate_but_a_note(ds
     assert evaluation_notes(ev) == [note]
     text = summary_text(dataclasses.replace(result, evaluation=ev)).splitlines()
     assert "  cam: no ATE: 0 of 180 states matched to truth" in text and f"  note: {note}" in text
+
+
+def test_states_of_a_stream_keep_only_its_samples_between_start_and_end():
+    """`states: {stream, start, end}` (with or without `every`): the stream's stamps in [start, end]; without a
+    window every stamp (start and end were ignored with a stream clock, so a calibration on half a recording used
+    all of it)."""
+    import numpy as np
+    from fusionkit.data.stream import Stream
+    from fusionkit.graph.builder import state_times
+    stream = Stream("s", np.arange(10.0), ("x",), np.zeros((10, 1)))
+    assert state_times({"stream": "s"}, {"s": stream}).tolist() == list(np.arange(10.0))
+    assert state_times({"stream": "s", "start": 2.0, "end": 6.5}, {"s": stream}).tolist() == [2.0, 3.0, 4.0, 5.0, 6.0]
+    assert state_times({"stream": "s", "end": 4.0, "every": 2}, {"s": stream}).tolist() == [0.0, 2.0, 4.0]
