@@ -28,6 +28,7 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
                               vector_type)
 from .models.integration import held_intervals
 from .models.cable_robot import CableRobot, cable_robot
+from .models.pulley import pulley_cables
 from .models.odometry import odometry_pairs, sensor_mount, stream_poses_at
 from .models.planar import arc_path, differential_drive_twist, unicycle_increment
 from .descriptions.description import Parameter, RobotDescription, Sensor
@@ -69,7 +70,8 @@ API_VERSION = "1.14"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      retraction and interpolation; `between` may be None; odometry_pairs, sensor_mount, stream_poses_at (a pose
 #      stream against a robot's states, shared by the pose and imu families); the ctx plugins receive has the
 #      BuildContext operations only (anything else: AttributeError)
-# 1.14: ctx.sigma(key): after solving (FactorType.review), a variable's 1-sigma per tangent axis
+# 1.14: ctx.sigma(key): after solving (FactorType.review), a variable's 1-sigma per tangent axis; pulley_cables
+#      (a cable over a swivelling pulley, the core's cable model); load_robot_description(..., calibration=, robot=)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -94,7 +96,7 @@ __all__ = [
     # schema fragments and the standard gravity every family shares
     "NAME_SCHEMA", "POSITIVE_SCHEMA", "NON_NEGATIVE_SCHEMA", "GRAVITY",
     # the cable robot description every cable family reads (model `cdpr`)
-    "CableRobot", "cable_robot",
+    "CableRobot", "cable_robot", "pulley_cables",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment", "arc_path",
     "differential_drive_twist", "odometry_pairs", "sensor_mount", "stream_poses_at",

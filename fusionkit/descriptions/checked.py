@@ -8,6 +8,7 @@ from pathlib import Path
 from ..config.schema import validate_against
 from ..config.yamlio import load_yaml
 from ..errors import ConfigError, PluginError
+from .calibration_file import apply_calibration, calibration_entries
 from .description import COMMON_KEYS, RobotDescription, description_from_document
 from .registered import is_description_name, registered_document
 
@@ -45,15 +46,34 @@ def check_with_model(desc: RobotDescription, reg) -> RobotDescription:
     return desc
 
 
-def load_robot_description(source: str | Path, base: Path | None = None) -> RobotDescription:
+def load_robot_description(source: str | Path, base: Path | None = None, calibration: str | Path | None = None,
+                           robot: str | None = None) -> RobotDescription:
     """The robot description `source` names -- a shipped one by name (`ur10_tracker`) or a YAML file
-    (relative to `base`, default the working folder) -- checked as a config's robots are; one located
-    ConfigError otherwise."""
+    (relative to `base`, default the working folder) -- checked as a config's robots are; with `calibration`, a
+    calibration file (`fusionkit run`'s calibration.yaml) applied over it: the entries of `robot` (needed when the
+    file has several robots). One located ConfigError otherwise."""
     from ..plugins import registry
     reg = registry()
     if is_description_name(str(source)):
-        return check_with_model(description_from_document(registered_document(str(source), reg, None, ())), reg)
+        desc = check_with_model(description_from_document(registered_document(str(source), reg, None, ())), reg)
+    else:
+        file = _existing(source, base, "robot description")
+        desc = check_with_model(description_from_document(load_yaml(file)), reg)
+    if calibration is not None:
+        doc = load_yaml(_existing(calibration, base, "calibration"))
+        entries = calibration_entries(doc)
+        if robot is None and len(entries) != 1:
+            raise ConfigError(f"{doc.file}: the calibration has robots {', '.join(sorted(entries)) or '(none)'}; "
+                              "name the one to apply")
+        name = robot if robot is not None else next(iter(entries))
+        if name not in entries:
+            raise ConfigError(f"{doc.file}: no robot {name!r} in the calibration; it has {', '.join(sorted(entries))}")
+        apply_calibration(desc, entries[name], doc, name)
+    return desc
+
+
+def _existing(source: str | Path, base: Path | None, what: str) -> Path:
     file = Path(source) if Path(source).is_absolute() else Path(base or Path.cwd()) / source
     if not file.is_file():
-        raise ConfigError(f"robot description file not found: {file}" + (" (a folder)" if file.is_dir() else ""))
-    return check_with_model(description_from_document(load_yaml(file)), reg)
+        raise ConfigError(f"{what} file not found: {file}" + (" (a folder)" if file.is_dir() else ""))
+    return file

@@ -9,12 +9,12 @@ import gtsam
 import numpy as np
 
 from fusionkit.api import (cable_robot, FactorExample, FactorType, POSITIVE_SCHEMA as SIGMA, ResidualPart, Spec, Stream,
-                           TOLERANCE_SCHEMA, gaussian, parameter_indices, range_factor, vectorized_factor)
+                           TOLERANCE_SCHEMA, gaussian, parameter_indices, pulley_cables, range_factor, vectorized_factor)
 
 LENGTH_PART = [ResidualPart("length", "m", (0,))]  # a cable-length residual (m)
 
 from .kinematics import forward_kinematics
-from .pulley import pulley_cables
+
 from .residuals import along_normal_residual, elastic_cable_residual, plane_distance_residual
 
 INDEX_LIST = {"type": "array", "items": {"type": "integer", "minimum": 0}, "minItems": 1}

@@ -6,9 +6,7 @@ from functools import partial
 
 import numpy as np
 
-from fusionkit.api import POINT3, POSE3, SCALAR, VectorizedResidual
-
-from .pulley import pulley_cables
+from fusionkit.api import POINT3, POSE3, SCALAR, VectorizedResidual, pulley_cables
 
 
 def elastic_cables(rho: float, axis, x: list[np.ndarray], data: dict[str, np.ndarray], jacobians: bool):

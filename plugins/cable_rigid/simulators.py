@@ -36,12 +36,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fusionkit.api import (CLOCK_SCHEMA, ConfigError, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS,
+from fusionkit.api import (pulley_cables, CLOCK_SCHEMA, ConfigError, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS,
                            POSE_NOISE_SCHEMA as SIGMA, POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream,
                            clock_times, noisy, odometry, pose_stream, poses_from_array, robot_description_data,
                            sample_times)
 
-from .pulley import pulley_cables
 
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
 ENCODER_OFFSET = "encoder_time_offset"  # the description's parameter when the encoders are simulated lagging (s)

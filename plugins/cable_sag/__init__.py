@@ -7,6 +7,7 @@ plugin; it builds on the rigid-cable plugin's `cdpr` robot model and `cdpr_small
 from fusionkit.api import hookimpl, robot_description_files
 
 from . import catenary_factor
+from .commands import COMMANDS
 from .factors import FACTOR_TYPES
 from .initializers import INITIALIZERS
 from .simulators import SIMULATORS
@@ -27,6 +28,11 @@ def register_initializers():
 @hookimpl
 def register_simulators():
     return SIMULATORS
+
+
+@hookimpl
+def register_commands():
+    return COMMANDS
 
 
 @hookimpl

@@ -69,9 +69,9 @@ class Hanging:
         w = given.get("weight", self.weight_per_length)
         weight = self.gravity * np.asarray(given.get("mass", self.mass), float)
         com = given.get("com", self.com)
-        lengths, unbalanced = hanging(poses[:, :3, :3], poses[:, :3, 3], pulleys, self.attachments, com, weight,
-                                      np.broadcast_to(np.asarray(w, float), (len(poses),)))
-        return lengths, unbalanced, offsets
+        hung = hanging(poses[:, :3, :3], poses[:, :3, 3], pulleys, self.attachments, com, weight,
+                       np.broadcast_to(np.asarray(w, float), (len(poses),)))
+        return hung.lengths, hung.unbalanced, offsets
 
 
 def hanging_of(ctx, spec: Spec, offsets: bool) -> Hanging:

@@ -18,6 +18,8 @@ hold there.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .catenary import catenary
@@ -44,8 +46,18 @@ def balancing_tensions(W: np.ndarray, wrench: np.ndarray) -> np.ndarray:
     return np.linalg.solve(normal, -np.einsum("kni,ki->kn", W, wrench)[..., None])[..., 0]
 
 
-def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight, w):
-    """(arc lengths (N, n) (m), the wrench the cables leave unbalanced (N, 6) (N, N m)) of cables of weight w (N/m)
+class Hung(NamedTuple):
+    """Cables at N poses: arc lengths (N, n) (m), the wrench they leave unbalanced (N, 6) (N, N m), and each
+    cable's pull on the end-effector at its attachment, horizontal (towards the pulley) and vertical (N, n) (N)."""
+
+    lengths: np.ndarray
+    unbalanced: np.ndarray
+    horizontal: np.ndarray
+    vertical: np.ndarray
+
+
+def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight, w) -> Hung:
+    """The arc lengths, the wrench left unbalanced and the pulls (Hung) of cables of weight w (N/m)
     from pulleys (N, n, 3) to the attachments of poses R (N, 3, 3), t (N, 3), the end-effector weighing `weight`
     (N) with centre of mass `com` (m, body frame); w, weight (N,) or scalars, com (N, 3) or (3,)."""
     n_poses = len(R)
@@ -70,7 +82,7 @@ def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.n
         directions = pull / np.linalg.norm(pull, axis=2, keepdims=True)
     W, wrench = _wrench(R, directions, attachments, com, weight)
     forces = np.linalg.norm(pull, axis=2)
-    return catenary(H, V, span, w)[0], np.einsum("kni,kn->ki", W, forces) + wrench
+    return Hung(catenary(H, V, span, w)[0], np.einsum("kni,kn->ki", W, forces) + wrench, H, V)
 
 
 def catenary_lengths(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight,

@@ -18,7 +18,7 @@ from fusionkit.graph.noise import gaussian
 from fusionkit.pipeline import estimate
 from fusionkit.testing.contract import FactorExample, check_factor_example
 from fusionkit_plugins.cable_rigid.factors import elastic_cable_factor
-from fusionkit_plugins.cable_rigid.pulley import pulley_cables
+from fusionkit.api import pulley_cables
 
 UP = np.array([0.0, 0.0, 1.0])
 

@@ -1,4 +1,5 @@
-"""A cable leaving a swivelling pulley of radius rho (docs/models/cable_rigid.md#pulley-radius).
+"""A cable leaving a swivelling pulley of radius rho (docs/models/cable_rigid.md#pulley-radius): part of the core's
+cable robot model (public as fusionkit.api.pulley_cables), shared by the cable families and the length predictor.
 
 The cable arrives at the swivel point A travelling along the swivel axis u, wraps over a pulley of radius
 rho that turns about u to face the attachment point P, and leaves it at the tangent point T. In the pulley's
