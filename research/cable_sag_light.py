@@ -4,7 +4,7 @@ against the catenary at the measured pose (`cable.catenary`) on `cable.sag_stati
 capture of the end-effector. Each run calibrates on the first half of the static poses and predicts the cable
 lengths of the second half from their measured poses.
 
-    python research/cable_sag_light.py [--seeds 5] [--com-error 0.02]
+    python research/cable_sag_light.py [--seeds 5] [--com-error 0.02] [--moving]
 """
 
 from __future__ import annotations
@@ -125,13 +125,99 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--com-error", type=float, default=0.0, help="m: the true centre of mass off the description's")
+    parser.add_argument("--moving", action="store_true", help="the robot on a slow path, the encoders 30 ms early "
+                        "(a time offset estimated), instead of static poses")
     parser.add_argument("--models", nargs="+", default=["rigid", "catenary", "catenary_weight"],
                         help="rigid, catenary, catenary_weight, catenary_statics (with cable.statics, the centre of "
                              "mass estimated)")
     args = parser.parse_args()
     for seed in range(args.seeds):
-        for model, row in run(seed, tuple(args.models), com_error=args.com_error).items():
+        rows = run_moving(seed, tuple(args.models)) if args.moving else run(seed, tuple(args.models),
+                                                                               com_error=args.com_error)
+        for model, row in rows.items():
             print(seed, model, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()})
+
+
+
+# --- a moving robot: the same light cables on a slow path, the encoders' clock early by LAG --------------------------
+PATH = {"duration": 60.0, "rate": 10.0, "lag": 0.03}  # s, Hz, s
+
+
+def moving_dataset(folder: Path, seed: int, path: dict = PATH) -> Path:
+    from fusionkit.simulate import write_dataset
+    write_dataset("cable.sag_static", folder, ["robot=cdpr_small", f"length_sigma={LENGTH_SIGMA}", f"workspace={WORKSPACE}",
+                                               f"path={{duration: {path['duration']}, rate: {path['rate']}, lag: "
+                                               f"{path['lag']}}}",
+                                               f"pose_sigma={{rotation: {MOCAP['rotation']}, translation: "
+                                               f"{MOCAP['translation']}}}"], seed=seed)
+    return folder
+
+
+def moving_config(folder: Path, model: str, path: dict = PATH) -> dict:
+    """Calibration on the path's first half with a time offset `lag` (s) on the lengths."""
+    data = config(folder, model, 0, weight_sigma=0.2)
+    robot_file = folder / "robots" / f"{model}.yaml"
+    robot = yaml.safe_load(robot_file.read_text())
+    robot["parameters"]["lag"] = {"type": "scalar", "value": 0.0, "sigma": 0.1, "unit": "s"}
+    robot_file.write_text(yaml.safe_dump(robot, sort_keys=False))
+    data["robots"]["cdpr"]["states"] = {"stream": "poses", "end": path["duration"] / 2 - 0.5 / path["rate"]}
+    data["factors"][1]["time_offset"] = {"parameter": "lag"}
+    return data
+
+
+def held_out_moving(folder: Path, model: str, result, path: dict = PATH) -> float:
+    """RMS (m) of the second half's lengths predicted at the measured poses interpolated at t + lag (the estimate)."""
+    from scipy.spatial.transform import Rotation, Slerp
+    from fusionkit.data.files import read_csv_stream
+    from fusionkit_plugins.cable_sag.measured_geometry import catenary_lengths
+    from fusionkit_plugins.cable_sag.model import shipped_robot
+    robot, _ = shipped_robot("cdpr_small")
+    params = result.parameters["cdpr"]
+    pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
+    offsets = np.array([float(v) for v in params["offset"].values])
+    lag = float(params["lag"].values[0])
+    w = {"rigid": 0.0, "catenary": robot.cable_weight}.get(model)
+    if w is None:
+        w = float(params["cable_weight"].values[0])
+    poses = np.loadtxt(folder / "data" / "poses.tum")
+    stream = read_csv_stream(folder / "data" / "lengths.csv", "lengths")
+    keep = (stream.t >= path["duration"] / 2) & (stream.t + lag <= poses[-1, 0])
+    tau = stream.t[keep] + lag
+    R = Slerp(poses[:, 0], Rotation.from_quat(poses[:, 4:8]))(tau).as_matrix()
+    t = np.column_stack([np.interp(tau, poses[:, 0], poses[:, c]) for c in (1, 2, 3)])
+    predicted = catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments,
+                                 robot.com, robot.weight, np.full(len(t), w)) + offsets
+    return float(np.sqrt(np.mean((predicted - stream.values[keep]) ** 2)))
+
+
+def run_moving(seed: int, models=("rigid", "catenary", "catenary_weight"), path: dict = PATH) -> dict:
+    """{model: {pulley_mm, held_out_mm, chi2_dof, lag_ms (estimate, sigma), weight where estimated}}."""
+    from fusionkit.config.loader import load_config
+    from fusionkit.errors import SolverError
+    from fusionkit.pipeline import estimate
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = moving_dataset(Path(tmp) / "ds", seed, path)
+        truth = yaml.safe_load((folder / "truth" / "calibration.yaml").read_text())["robots"]["cdpr"]
+        true_pulleys = np.asarray(truth["pulley"]["values"], float)
+        for model in models:
+            file = folder / f"{model}.yaml"
+            file.write_text(yaml.safe_dump(moving_config(folder, model, path), sort_keys=False))
+            try:
+                result = estimate(load_config(file))
+            except SolverError as exc:
+                out[model] = {"rejected": str(exc)[:120]}
+                continue
+            params = result.parameters["cdpr"]
+            pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
+            row = {"pulley_mm": 1e3 * float(np.mean(np.linalg.norm(pulleys - true_pulleys, axis=1))),
+                   "held_out_mm": 1e3 * held_out_moving(folder, model, result, path),
+                   "chi2_dof": float(result.solution.chi2_per_dof),
+                   "lag_ms": (1e3 * float(params["lag"].values[0]), 1e3 * float(params["lag"].sigma[0, 0]))}
+            if model == "catenary_weight":
+                row["weight"] = (float(params["cable_weight"].values[0]), float(params["cable_weight"].sigma[0, 0]))
+            out[model] = row
+    return out
 
 
 if __name__ == "__main__":

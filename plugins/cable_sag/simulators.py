@@ -20,6 +20,11 @@ lengths and force constant (up to their noise) while the end-effector swings hor
 equilibrium, amplitude * exp(-tau / decay) * sin(2 pi tau / period), in a random direction: the
 recording a static model meets on a real robot. The truth is then one pose per sample (swing
 included); the static poses are what `static_segments` recovers.
+
+`path: {duration: s, rate: Hz, lag: s}`: instead of static poses, the robot moves slowly (quasi-statically: in
+equilibrium at every instant) along a smooth path through the workspace (a Lissajous curve over 80 % of each
+axis, the yaw a slow sinusoid of amplitude yaw_sigma), sampled at `rate`; the encoders' clock is `lag` s early:
+the lengths stamped t are those at t + lag (a time offset to estimate). Truth: the path's poses.
 """
 
 from __future__ import annotations
@@ -94,6 +99,10 @@ class SagStaticSimulator(Simulator):
                              "force_sigma": {"anyOf": [NONNEG, {"type": "null"}]},
                              "yaw_sigma_deg": NONNEG, "length_sigma": NONNEG,
                              "pose_sigma": SIGMA, "com_error": NONNEG,
+                             "path": {"anyOf": [{"type": "null"}, {
+                                 "type": "object",
+                                 "properties": {"duration": POSITIVE, "rate": POSITIVE, "lag": {"type": "number"}},
+                                 "required": ["duration", "rate"], "additionalProperties": False}]},
                              "swing": {"anyOf": [{"type": "null"}, {
                                  "type": "object",
                                  "properties": {"dwell": POSITIVE, "rate": POSITIVE, "amplitude": NONNEG,
@@ -103,7 +112,7 @@ class SagStaticSimulator(Simulator):
               "additionalProperties": False}
     defaults = {"robot": "cdpr_large", "poses": 35, "workspace": None, "initial_error": None,
                 "force_sigma": None, "yaw_sigma_deg": 1.0, "length_sigma": 0.001, "pose_sigma": POSE_SIGMA,
-                "com_error": 0.0, "swing": None}
+                "com_error": 0.0, "swing": None, "path": None}
 
     def _params(self, params: dict) -> dict:
         p = {**self.defaults, **params}
@@ -127,12 +136,19 @@ class SagStaticSimulator(Simulator):
         lo, hi = np.asarray(p["workspace"]["min"], float), np.asarray(p["workspace"]["max"], float)
         if np.any(lo >= hi):
             raise ConfigError(f"<simulate {self.name}>: workspace min must be below max on every axis")
-        states = [self._static_pose(rng, lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
-                  for _ in range(p["poses"])]
+        if p["path"]:
+            t = np.arange(int(round(p["path"]["duration"] * p["path"]["rate"]))) / p["path"]["rate"]
+            states = self._path(t, p["path"]["duration"], lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
+            lagged = self._path(t + p["path"].get("lag", 0.0), p["path"]["duration"], lo, hi, pulleys, robot,
+                                np.radians(p["yaw_sigma_deg"]))
+        else:
+            states = [self._static_pose(rng, lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
+                      for _ in range(p["poses"])]
+            lagged = states
+            t = np.arange(p["poses"], dtype=float)
         truth = np.array([np.concatenate([s.t, Rotation.from_matrix(s.R).as_quat()]) for s in states])
-        lengths = np.array([s.state.length for s in states]) + offsets
-        force = np.array([s.forces[robot.reference] for s in states])
-        t = np.arange(p["poses"], dtype=float)
+        lengths = np.array([s.state.length for s in lagged]) + offsets
+        force = np.array([s.forces[robot.reference] for s in lagged])
         if p["swing"]:
             t, truth, lengths, force = _dwell_and_swing(p["swing"], truth, lengths, force, rng)
         lengths = lengths + rng.normal(0.0, p["length_sigma"], lengths.shape)
@@ -146,6 +162,21 @@ class SagStaticSimulator(Simulator):
                                     "offset": {"type": "scalar", "values": offsets.tolist()}}}
         return SourceOutput(streams, {ROBOT_NAME: pose_stream(ROBOT_NAME, t, truth, "simulated:truth")},
                             calibration)
+
+    @staticmethod
+    def _path(t: np.ndarray, duration: float, lo, hi, pulleys, robot, yaw_sigma: float) -> list:
+        """The robot in equilibrium at each time t on a smooth path through the box lo..hi."""
+        phase = 2 * np.pi * t / duration
+        centre, half = 0.5 * (lo + hi), 0.4 * (hi - lo)
+        positions = centre + half * np.column_stack([np.sin(phase), np.sin(2 * phase + 0.7), np.sin(3 * phase + 1.3)])
+        out = []
+        for tk, position, yaw in zip(t, positions, yaw_sigma * np.sin(4 * phase)):
+            try:
+                out.append(inverse_pose(position, pulleys, robot, yaw=float(yaw)))
+            except StaticsError:
+                raise ConfigError(f"<simulate cable.sag_static>: at t = {tk:g} s the path leaves the statics' "
+                                  "workspace (a cable would go slack); shrink `workspace`") from None
+        return out
 
     @staticmethod
     def _static_pose(rng, lo, hi, pulleys, robot, yaw_sigma):
