@@ -27,7 +27,7 @@ from fusionkit.api import (NAME_SCHEMA, POINT3, POSE3, POSITIVE_SCHEMA, SCALAR, 
                            robot_description_data, vectorized_factor)
 
 from .measured_geometry import hanging
-from .model import length_columns, shipped_robot
+from .model import length_columns, refuse_pulley_radius, shipped_robot
 from .static_solver import inverse_pose
 
 ESTIMABLE = {"weight": SCALAR, "mass": SCALAR, "com": POINT3}  # entry key -> the parameter's type
@@ -106,10 +106,7 @@ def check_hanging(spec: Spec, scope) -> int:
     if robot.weight_per_length is None and "weight" not in spec.data:
         raise spec.error("robot", f"robot {spec['robot']!r} has no cables.weight_per_length (N/m): give it, or name "
                          "a scalar parameter with `weight:` to estimate it")
-    if robot.pulley_radius > 0:
-        raise spec.error("robot", f"robot {spec['robot']!r} has cables.pulley_radius {robot.pulley_radius:g} m: the "
-                         "catenary starts at a fixed exit point (the pulley parameter); remove it, or use "
-                         "cable.length, which models swivelling pulleys")
+    refuse_pulley_radius(spec, robot)
     for key, vartype in ESTIMABLE.items():
         if key in spec.data:
             scope.require_parameter(spec, "robot", key, vartype.name)

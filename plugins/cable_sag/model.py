@@ -37,6 +37,15 @@ def sag_robot(desc: RobotDescription, reference: int = 0) -> SagRobot:
     return sag_robot_from(desc, reference)
 
 
+def refuse_pulley_radius(spec: Spec, robot) -> None:
+    """The sag models start each catenary at a fixed exit point (the pulley parameter): a description's
+    cables.pulley_radius would be ignored, so it is refused at the entry's robot key."""
+    if robot.pulley_radius > 0:
+        raise spec.error("robot", f"robot {spec['robot']!r} has cables.pulley_radius {robot.pulley_radius:g} m: the "
+                         "sag models start each catenary at a fixed exit point (the pulley parameter) and would ignore "
+                         "the radius; remove it here, or use the rigid cable factors (cable.length), which model it")
+
+
 def check_sag_robot(spec: Spec, scope, n: int) -> None:
     """Four cables, a cable weight, an end-effector mass, a valid reference cable."""
     robot = cable_robot(scope.robots[spec["robot"]])
@@ -48,10 +57,7 @@ def check_sag_robot(spec: Spec, scope, n: int) -> None:
     if robot.mass is None:
         raise spec.error("robot", f"robot {spec['robot']!r} has no end_effector.mass (kg) or end_effector.weight "
                          "(N); the statics need it")
-    if robot.pulley_radius > 0:
-        raise spec.error("robot", f"robot {spec['robot']!r} has cables.pulley_radius {robot.pulley_radius:g} m: the "
-                         "sag model starts each catenary at a fixed exit point (the pulley parameter) and would ignore "
-                         "the radius; remove it here, or use the rigid cable factors (cable.length), which model it")
+    refuse_pulley_radius(spec, robot)
     if spec["reference"] >= n:
         raise spec.error("reference", f"cable index {spec['reference']} out of range: the robot has cables 0..{n - 1}")
 

@@ -71,4 +71,4 @@ def test_a_pulley_radius_is_refused_in_one_located_line_not_silently_ignored(tmp
     assert main(["validate", str(folder / "config.yaml")]) == 2
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "config.yaml:" in error
-    assert "robot: robot 'cdpr' has cables.pulley_radius 0.05 m: the sag model starts each catenary at a fixed" in error
+    assert "robot: robot 'cdpr' has cables.pulley_radius 0.05 m: the sag models start each catenary at a fixed" in error
