@@ -172,7 +172,7 @@ class CatenaryCable(FactorType):
     def example(cls, rng):
         """cdpr_small (light cables) hanging in equilibrium at a random pose of its taut workspace, consistent
         lengths; the weight per length, the mass and the centre of mass estimated."""
-        model, values, _ = _example_values(rng, offsets=True)
+        model, values = _example_values(rng, offsets=True)
         lengths, _, offsets = model.evaluate(_arrays(model, values))
         factor = vectorized_factor(length_residual(model), gaussian([1.0] * model.n), list(range(values.size())),
                                    {"z": lengths + offsets})
@@ -211,7 +211,7 @@ class CableStatics(FactorType):
     def example(cls, rng):
         """Weightless cables (the weight per length estimated at 0) at a pose the simulator's statics put in
         equilibrium for them: the cables balance the end-effector exactly, the wrench left is zero."""
-        model, values, _ = _example_values(rng, offsets=False, cable_weight=0.0)
+        model, values = _example_values(rng, offsets=False, cable_weight=0.0)
         factor = vectorized_factor(statics_residual(model), gaussian([1.0] * 6), list(range(values.size())), {})
         return FactorExample(factor, values, perturbation=0.003)
 
@@ -239,7 +239,7 @@ def _example_values(rng, offsets: bool, cable_weight: float | None = None):
     values.insert(key, float(robot.cable_weight))
     values.insert(key + 1, mass)
     values.insert(key + 2, np.asarray(robot.com, float))
-    return model, values, pose
+    return model, values
 
 
 def _arrays(model: Hanging, values: gtsam.Values) -> list[np.ndarray]:
