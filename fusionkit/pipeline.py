@@ -29,6 +29,8 @@ from .eval.trajectory import (MATCH_TOLERANCE, fit_alignment, matched_positions,
 from .graph.builder import BuildContext, Problem, record_times, state_times
 from .graph.context import for_plugins
 from .graph.keys import STATE, TIME_VARYING, Family
+from .graph.variables import POSE3
+from .graph.vectorized import ValueReader
 from .plugins import registry
 from .progress import Progress
 from .threads import one_blas_thread
@@ -195,12 +197,12 @@ def _trajectories(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndar
         if planar:  # lifted to the plane z = 0
             read = [values.atPose2(k) for k in keys]
             arr = pose_array_from([gtsam.Pose3(gtsam.Rot3.Yaw(p.theta()), np.array([p.x(), p.y(), 0.0])) for p in read])
-        else:
-            rows = _pose3_rows(values, keys)
-            arr = pose_array_of(rows[:, :9].reshape(-1, 3, 3), rows[:, 9:])
+        else:  # every pose at once, through the type's table read
+            matrices = ValueReader(values).read(POSE3, np.asarray(keys, dtype=np.int64))
+            arr = pose_array_of(matrices[:, :3, :3], matrices[:, :3, 3])
         trajs[robot] = pose_stream(robot, states.t[ks], arr, f"estimate:{robot}")
         if all(k in cov for k in keys):
-            rot = [gtsam.Rot2(p.theta()).matrix() for p in read] if planar else rows[:, :9].reshape(-1, 3, 3)
+            rot = [gtsam.Rot2(p.theta()).matrix() for p in read] if planar else matrices[:, :3, :3]
             sigmas[robot] = np.asarray([np.sqrt(np.diag(world_position_covariance(r, cov[k], planar)))
                                         for r, k in zip(rot, keys)])
     return trajs, sigmas
@@ -212,14 +214,6 @@ def world_position_covariance(rotation: np.ndarray, tangent: np.ndarray, planar:
     idx = [0, 1] if planar else [3, 4, 5]
     r = np.asarray(rotation)[:2, :2] if planar else rotation
     return r @ tangent[np.ix_(idx, idx)] @ r.T
-
-
-def _pose3_rows(values: gtsam.Values, keys: list[int]) -> np.ndarray:
-    """(n, 12) rows [rotation matrix row by row, translation] of the Pose3 values at `keys`: two calls
-    for all of them, not one per key."""
-    rows = gtsam.utilities.extractPose3(values)  # every Pose3 of `values`, in key order
-    have = np.asarray(gtsam.utilities.allPose3s(values).keys(), dtype=np.uint64)
-    return rows[np.searchsorted(have, np.asarray(keys, dtype=np.uint64))]
 
 
 def _parameters(problem: Problem, values: gtsam.Values, cov: dict[int, np.ndarray]):

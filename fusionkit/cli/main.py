@@ -143,8 +143,6 @@ def _kind_label(kind: str) -> str:
 
 COMMON_KEYS = {"factor_types": "label, robust {kernel, k}, noise_scale (a number or estimate)", "sources": "label",
                "initializers": "label"}
-# factor types that pair samples with states by stamp (a `tolerance` key) also take a time offset
-TIME_OFFSET_KEYS = "time_offset {robot, parameter, rate, velocities}"
 
 
 def component_keys(reg, name: str) -> list[str]:
@@ -152,6 +150,7 @@ def component_keys(reg, name: str) -> list[str]:
     its keys: `required`, the default a config that omits it gets, or `optional`; and what each accepts."""
     from ..config.defaults import key_rows
     from ..plugins import REGISTRATIONS
+    from ..time_offset.config import KEY as TIME_OFFSET, SCHEMA as TIME_OFFSET_SCHEMA, takes_time_offset
     lines = []
     for kind in REGISTRATIONS:
         if reg.get(kind, name) is None:
@@ -170,8 +169,8 @@ def component_keys(reg, name: str) -> list[str]:
         lines += [f"  {key:<{widths[0]}}  {status:<{widths[1]}}  {what}" for key, status, what in rows]
         if kind in COMMON_KEYS:
             common = COMMON_KEYS[kind]
-            if kind == "factor_types" and "tolerance" in item["schema"].get("properties", {}):
-                common += f", {TIME_OFFSET_KEYS}"
+            if kind == "factor_types" and takes_time_offset(reg.get(kind, name)):
+                common += f", {TIME_OFFSET} {{{', '.join(TIME_OFFSET_SCHEMA['properties'])}}}"
             lines.append(f"  (every entry also accepts: {common})")
     if not lines:
         raise FusionkitError(f"nothing installed is called {name!r}; `fusionkit plugins` lists every name")

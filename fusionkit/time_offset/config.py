@@ -48,13 +48,19 @@ class TimeOffset:
         return f"{self.robot}/{self.parameter}"
 
 
+def takes_time_offset(factor_type: type) -> bool:
+    """Whether entries of a factor type may take `time_offset:`: those that pair samples with states by stamp (a
+    `tolerance` key)."""
+    return "tolerance" in factor_type.schema.get("properties", {})
+
+
 def check_time_offset(spec: Spec, factor_type: type, scope: CheckScope) -> None:
     """The entry's `time_offset:` names scalar parameters of a robot, on an entry that pairs samples with
     states by stamp and whose robots' states can be interpolated; raises a located ConfigError."""
     if KEY not in spec.data:
         return
     raw, path = spec[KEY], (KEY,)
-    if "tolerance" not in factor_type.schema.get("properties", {}):
+    if not takes_time_offset(factor_type):
         raise spec.error(path, f"factor type {spec.type} does not pair its samples with states by stamp, so a time "
                          "offset cannot apply to it (it applies to entries with a `tolerance:` key)")
     robot = raw.get("robot") or spec.get("robot")
