@@ -28,6 +28,7 @@ from .graph.variables import (IMU_BIAS, POINT2, POINT3, POSE2, POSE3, ROT3, SCAL
                               vector_type)
 from .models.integration import held_intervals
 from .models.cable_robot import CableRobot, cable_robot
+from .models.cable_statics import cable_pull_wrenches, weight_wrench
 from .models.pulley import pulley_cables
 from .models.odometry import odometry_pairs, sensor_mount, stream_poses_at
 from .models.planar import arc_path, differential_drive_twist, unicycle_increment
@@ -71,7 +72,7 @@ API_VERSION = "1.14"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      stream against a robot's states, shared by the pose and imu families); the ctx plugins receive has the
 #      BuildContext operations only (anything else: AttributeError)
 # 1.14: ctx.sigma(key): after solving (FactorType.review), a variable's 1-sigma per tangent axis; pulley_cables
-#      (a cable over a swivelling pulley, the core's cable model); load_robot_description(..., calibration=, robot=)
+#      (a cable over a swivelling pulley, the core's cable model), cable_pull_wrenches and weight_wrench (its statics); load_robot_description(..., calibration=, robot=)
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -96,7 +97,7 @@ __all__ = [
     # schema fragments and the standard gravity every family shares
     "NAME_SCHEMA", "POSITIVE_SCHEMA", "NON_NEGATIVE_SCHEMA", "GRAVITY",
     # the cable robot description every cable family reads (model `cdpr`)
-    "CableRobot", "cable_robot", "pulley_cables",
+    "CableRobot", "cable_robot", "pulley_cables", "cable_pull_wrenches", "weight_wrench",
     # shared models
     "body_point_range", "fit_range_origin", "range_factor", "held_intervals", "unicycle_increment", "arc_path",
     "differential_drive_twist", "odometry_pairs", "sensor_mount", "stream_poses_at",

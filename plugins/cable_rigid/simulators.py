@@ -36,10 +36,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fusionkit.api import (pulley_cables, CLOCK_SCHEMA, ConfigError, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS,
+from fusionkit.api import (CLOCK_SCHEMA, ConfigError, GRAVITY, NON_NEGATIVE_SCHEMA as NONNEG, POSE_COLUMNS,
                            POSE_NOISE_SCHEMA as SIGMA, POSITIVE_SCHEMA as POSITIVE, Simulator, SourceOutput, Stream,
-                           clock_times, noisy, odometry, pose_stream, poses_from_array, robot_description_data,
-                           sample_times)
+                           cable_pull_wrenches, clock_times, noisy, odometry, pose_stream, poses_from_array,
+                           pulley_cables, robot_description_data, sample_times, weight_wrench)
 
 
 ROBOT_NAME = "cdpr"  # robot name in the written config, truth and robots/cdpr.yaml
@@ -116,14 +116,12 @@ def wrench_matrix(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray
     """(N, 6, n): column i is the wrench [u_i; R b_i x u_i] (about the end-effector origin, base
     frame) of a unit tension in cable i, u_i the unit vector from attachment towards the pulley."""
     _, u, arms = cables(pos, rot, geo)
-    return np.concatenate([u, np.cross(arms, u)], axis=2).transpose(0, 2, 1)
+    return cable_pull_wrenches(arms, u).transpose(0, 2, 1)
 
 
 def gravity_wrench(rot: np.ndarray, geo: Geometry) -> np.ndarray:
     """(N, 6): weight m g at the centre of mass, about the end-effector origin, base frame."""
-    f = np.array([0.0, 0.0, -geo.mass * GRAVITY])
-    lever = rot @ geo.com
-    return np.column_stack([np.broadcast_to(f, lever.shape), np.cross(lever, f)])
+    return weight_wrench(rot, geo.com, geo.mass * GRAVITY)
 
 
 def static_tensions(pos: np.ndarray, rot: np.ndarray, geo: Geometry) -> np.ndarray:

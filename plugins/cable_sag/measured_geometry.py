@@ -22,22 +22,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from fusionkit.api import cable_pull_wrenches, weight_wrench
+
 from .catenary import catenary
 
 NEWTON_STEPS = 8
 STATICS_ROUNDS = 3  # statics with the chord's direction, then twice with the catenary's pull at the attachment
 MIN_TENSION_SHARE = 1e-3
-
-
-def _wrench(R: np.ndarray, directions: np.ndarray, attachments: np.ndarray, com: np.ndarray, weight: np.ndarray):
-    """(W (N, n, 6), the weight's wrench (N, 6)): W^T tau is the wrench of tensions tau along unit `directions`
-    (N, n, 3) (each cable's pull at its attachment) at orientations R; the weight (N,) acts at com (N, 3)."""
-    r = np.einsum("kij,nj->kni", R, attachments)
-    W = np.concatenate([directions, np.cross(r, directions)], axis=2)
-    gravity = np.zeros((len(R), 3))
-    gravity[:, 2] = -weight
-    arm = np.einsum("kij,kj->ki", R, com)
-    return W, np.concatenate([gravity, np.cross(arm, gravity)], axis=1)
 
 
 def balancing_tensions(W: np.ndarray, wrench: np.ndarray) -> np.ndarray:
@@ -62,16 +53,16 @@ def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.n
     (N) with centre of mass `com` (m, body frame); w, weight (N,) or scalars, com (N, 3) or (3,)."""
     n_poses = len(R)
     weight = np.broadcast_to(np.asarray(weight, float), (n_poses,))
-    com = np.broadcast_to(np.asarray(com, float), (n_poses, 3))
-    chord = pulleys - (np.einsum("kij,nj->kni", R, attachments) + t[:, None, :])
+    arms = np.einsum("kij,nj->kni", R, attachments)  # R b_i
+    chord = pulleys - (arms + t[:, None, :])
+    wrench = weight_wrench(R, com, weight)
     span = np.maximum(np.hypot(chord[..., 0], chord[..., 1]), 1e-9)
     rise = chord[..., 2]
     level = chord * np.array([1.0, 1.0, 0.0]) / span[..., None]  # s_i: horizontal unit vector towards the pulley
     w = np.broadcast_to(np.asarray(w, float).reshape(-1, 1), span.shape)
     directions = chord / np.linalg.norm(chord, axis=2, keepdims=True)
     for _ in range(STATICS_ROUNDS):  # the pull's direction at the attachment: the chord first, then the catenary's
-        W, wrench = _wrench(R, directions, attachments, com, weight)
-        tension = balancing_tensions(W, wrench)
+        tension = balancing_tensions(cable_pull_wrenches(arms, directions), wrench)
         H = np.maximum(tension * np.hypot(directions[..., 0], directions[..., 1]),
                        MIN_TENSION_SHARE * weight[:, None])
         V = H * rise / span
@@ -80,9 +71,9 @@ def hanging(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.n
             V = V - (reached - rise) / d_rise[..., 1]
         pull = H[..., None] * level + V[..., None] * np.array([0.0, 0.0, 1.0])
         directions = pull / np.linalg.norm(pull, axis=2, keepdims=True)
-    W, wrench = _wrench(R, directions, attachments, com, weight)
     forces = np.linalg.norm(pull, axis=2)
-    return Hung(catenary(H, V, span, w)[0], np.einsum("kni,kn->ki", W, forces) + wrench, H, V)
+    unbalanced = np.einsum("kni,kn->ki", cable_pull_wrenches(arms, directions), forces) + wrench
+    return Hung(catenary(H, V, span, w)[0], unbalanced, H, V)
 
 
 def catenary_lengths(R: np.ndarray, t: np.ndarray, pulleys: np.ndarray, attachments: np.ndarray, com, weight,
