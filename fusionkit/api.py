@@ -13,7 +13,7 @@ from . import lie, se2
 from .hookspecs import hookimpl
 from .components import (CheckScope, Command, FactorType, Initializer, ResidualPart, RobotModel, Simulator, Source,
                          SourceOutput, Spec, pose_parts)
-from .data.files import read_csv_stream
+from .data.files import read_csv_stream, read_tum
 from .design import Choice, compared_with_random, d_optimal, information, prior_information
 from .config.fragments import GRAVITY, NAME_SCHEMA, NON_NEGATIVE_SCHEMA, POSITIVE_SCHEMA
 from .data.association import TOLERANCE_SCHEMA, Association, interpolate_poses, nearest, segment_ids
@@ -72,7 +72,7 @@ API_VERSION = "1.14"  # 1.1: TOLERANCE_SCHEMA, ctx.associate(stream, robot, spec
 #      stream against a robot's states, shared by the pose and imu families); the ctx plugins receive has the
 #      BuildContext operations only (anything else: AttributeError)
 # 1.14: ctx.sigma(key): after solving (FactorType.review), a variable's 1-sigma per tangent axis; pulley_cables
-#      (a cable over a swivelling pulley, the core's cable model), cable_pull_wrenches and weight_wrench (its statics); load_robot_description(..., calibration=, robot=)
+#      (a cable over a swivelling pulley, the core's cable model), cable_pull_wrenches and weight_wrench (its statics); load_robot_description(..., calibration=, robot=); read_tum
 
 __all__ = [
     "API_VERSION", "hookimpl",
@@ -83,7 +83,7 @@ __all__ = [
     # robot descriptions shipped as package data, by name; a description by name or file, checked
     "robot_description_files", "robot_description_data", "load_robot_description",
     # subcommands of `fusionkit`, and the output folders they (and robot models' outputs) write
-    "Command", "check_output_folder", "write_output_folder", "read_csv_stream",
+    "Command", "check_output_folder", "write_output_folder", "read_csv_stream", "read_tum",
     # experiment design (D-optimal choice of candidate measurements)
     "d_optimal", "Choice", "information", "prior_information", "compared_with_random",
     # errors (one located line each)

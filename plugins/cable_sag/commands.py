@@ -13,22 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fusionkit.api import (Command, ConfigError, DataError, cable_robot, check_output_folder, load_robot_description,
-                           pulley_cables, write_output_folder)
+from fusionkit.api import (Command, ConfigError, cable_robot, check_output_folder, load_robot_description,
+                           pulley_cables, read_tum, write_output_folder)
 
 from .measured_geometry import hanging
-
-
-def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t (N,), rotation matrices (N, 3, 3), positions (N, 3)) of a TUM file; DataError naming the file otherwise."""
-    from scipy.spatial.transform import Rotation
-    try:
-        rows = np.atleast_2d(np.loadtxt(path, comments="#", dtype=float))
-    except (OSError, ValueError) as exc:
-        raise DataError(f"{path}: not a TUM trajectory (t x y z qx qy qz qw per line): {exc}") from None
-    if rows.shape[1] != 8 or not len(rows):
-        raise DataError(f"{path}: expected 8 columns t x y z qx qy qz qw per line; got {rows.shape[1]}")
-    return rows[:, 0], Rotation.from_quat(rows[:, 4:8]).as_matrix(), rows[:, 1:4]
 
 
 def _csv(header: list[str], columns: list[np.ndarray]) -> str:
@@ -62,7 +50,10 @@ class CableLengths(Command):
         pulleys = np.array([np.asarray(v, float) for v in desc.parameters["pulley"].values])
         offsets = np.array([float(v) for v in desc.parameters["offset"].values])
         w = 0.0 if args.rigid else self._weight(desc, robot, args.weight)
-        t, R, p = read_tum(poses)
+        from scipy.spatial.transform import Rotation  # here, not when fusionkit loads its plugins
+        measured = read_tum(poses, "poses")  # one located error for a malformed file
+        t, xyzq = measured.t, measured.pose_array()
+        R, p = Rotation.from_quat(xyzq[:, 3:]).as_matrix(), xyzq[:, :3]
         columns = [f"l{i}" for i in range(robot.n)]
         files = {}
         if w == 0.0:
