@@ -69,8 +69,7 @@ class Hanging:
         w = given.get("weight", self.weight_per_length)
         weight = self.gravity * np.asarray(given.get("mass", self.mass), float)
         com = given.get("com", self.com)
-        hung = hanging(poses[:, :3, :3], poses[:, :3, 3], pulleys, self.attachments, com, weight,
-                       np.broadcast_to(np.asarray(w, float), (len(poses),)))
+        hung = hanging(poses[:, :3, :3], poses[:, :3, 3], pulleys, self.attachments, com, weight, w)
         return hung.lengths, hung.unbalanced, offsets
 
 

@@ -69,7 +69,7 @@ class CableLengths(Command):
             if robot.mass is None:
                 raise ConfigError(f"{desc.name}: no end_effector.mass: the catenaries' forces come from it")
             hung = hanging(R, p, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments, robot.com,
-                           robot.gravity * float(robot.mass), np.full(len(t), w))
+                           robot.gravity * float(robot.mass), w)
             lengths = hung.lengths
             files["tensions.csv"] = _csv(["t"] + [f"H{i}" for i in range(robot.n)] + [f"V{i}" for i in range(robot.n)],
                                          [t, hung.horizontal, hung.vertical])

@@ -139,8 +139,9 @@ class SagStaticSimulator(Simulator):
         if p["path"]:
             t = np.arange(int(round(p["path"]["duration"] * p["path"]["rate"]))) / p["path"]["rate"]
             states = self._path(t, p["path"]["duration"], lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
-            lagged = self._path(t + p["path"].get("lag", 0.0), p["path"]["duration"], lo, hi, pulleys, robot,
-                                np.radians(p["yaw_sigma_deg"]))
+            lag = p["path"].get("lag", 0.0)
+            lagged = self._path(t + lag, p["path"]["duration"], lo, hi, pulleys, robot,
+                                np.radians(p["yaw_sigma_deg"])) if lag else states  # equilibria solved once
         else:
             states = [self._static_pose(rng, lo, hi, pulleys, robot, np.radians(p["yaw_sigma_deg"]))
                       for _ in range(p["poses"])]
