@@ -67,58 +67,68 @@ def config(folder: Path, model: str, poses: int, weight_sigma: float | None = No
             "solver": {"type": "batch", "method": "lm"}}
 
 
-def held_out_rms(folder: Path, model: str, result, first: int) -> float:
-    """RMS (m) of the held-out lengths predicted at their measured poses with the calibration."""
-    from fusionkit.data.files import read_csv_stream
+def predicted_lengths(result, model: str, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The encoder readings (N, n) the calibration `result` of `model` predicts at poses R (N, 3, 3), t (N, 3): its
+    pulleys, offsets and, where estimated, weight per length and centre of mass (else the description's; rigid:
+    weightless cables, the straight chord)."""
     from fusionkit_plugins.cable_sag.measured_geometry import catenary_lengths
     from fusionkit_plugins.cable_sag.model import shipped_robot
     robot, _ = shipped_robot("cdpr_small")
     params = result.parameters["cdpr"]
     pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
     offsets = np.array([float(v) for v in params["offset"].values])
-    w = {"rigid": 0.0, "catenary": robot.cable_weight, "catenary_statics": robot.cable_weight}.get(model)
-    if w is None:
-        w = float(params["cable_weight"].values[0])
-    rows = np.loadtxt(folder / "data" / "poses.tum")[first:]
+    w = 0.0 if model == "rigid" else float(params["cable_weight"].values[0]) if "cable_weight" in params \
+        else robot.cable_weight
+    com = np.asarray(params["centre_of_mass"].values[0], float) if "centre_of_mass" in params else robot.com
+    return catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments, com,
+                            robot.weight, w) + offsets
+
+
+def held_out_rms(folder: Path, model: str, result, first: int) -> float:
+    """RMS (m) of the held-out lengths predicted at their measured poses with the calibration."""
     from scipy.spatial.transform import Rotation
+    from fusionkit.data.files import read_csv_stream
+    rows = np.loadtxt(folder / "data" / "poses.tum")[first:]
     R, t = Rotation.from_quat(rows[:, 4:8]).as_matrix(), rows[:, 1:4]
     z = read_csv_stream(folder / "data" / "lengths.csv", "lengths").values[first:]
-    com = np.asarray(params["centre_of_mass"].values[0], float) if "centre_of_mass" in params else robot.com
-    predicted = catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments,
-                                 com, robot.weight, np.full(len(t), w)) + offsets
-    return float(np.sqrt(np.mean((predicted - z) ** 2)))
+    return float(np.sqrt(np.mean((predicted_lengths(result, model, R, t) - z) ** 2)))
 
 
-def run(seed: int, models=("rigid", "catenary", "catenary_weight"), poses: int = POSES, com_error: float = 0.0) -> dict:
-    """{model: {pulley_mm (mean error), held_out_mm, chi2_dof, weight (value, sigma) where estimated}}."""
+def score(folder: Path, model: str, data: dict, held_out) -> dict:
+    """Calibrate with config `data` (written to <model>.yaml) and score it: {pulley_mm (mean error against the
+    truth), held_out_mm (held_out(result), m), chi2_dof, and what it estimated: weight (value, sigma) N/m, com (m),
+    lag_ms (value, sigma)}; {rejected: why} when the chi-square gate refuses it."""
     from fusionkit.config.loader import load_config
     from fusionkit.errors import SolverError
     from fusionkit.pipeline import estimate
-    out = {}
+    file = folder / f"{model}.yaml"
+    file.write_text(yaml.safe_dump(data, sort_keys=False))
+    try:
+        result = estimate(load_config(file))
+    except SolverError as exc:  # refused by the chi-square gate: recorded, not a table row
+        return {"rejected": str(exc)[:120]}
+    truth = yaml.safe_load((folder / "truth" / "calibration.yaml").read_text())["robots"]["cdpr"]
+    params = result.parameters["cdpr"]
+    pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
+    row = {"pulley_mm": 1e3 * float(np.mean(np.linalg.norm(pulleys - np.asarray(truth["pulley"]["values"], float),
+                                                           axis=1))),
+           "held_out_mm": 1e3 * held_out(result), "chi2_dof": float(result.solution.chi2_per_dof)}
+    if "lag" in params:
+        row["lag_ms"] = (1e3 * float(params["lag"].values[0]), 1e3 * float(params["lag"].sigma[0, 0]))
+    if "cable_weight" in params:
+        row["weight"] = (float(params["cable_weight"].values[0]), float(params["cable_weight"].sigma[0, 0]))
+    if "centre_of_mass" in params:
+        row["com"] = [round(float(c), 4) for c in params["centre_of_mass"].values[0]]
+    return row
+
+
+def run(seed: int, models=("rigid", "catenary", "catenary_weight"), poses: int = POSES, com_error: float = 0.0) -> dict:
+    """{model: score(...)} on static poses, the first half calibrating, the second predicted."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = dataset(Path(tmp) / "ds", seed, poses, com_error)
-        truth = yaml.safe_load((folder / "truth" / "calibration.yaml").read_text())["robots"]["cdpr"]
-        true_pulleys = np.asarray(truth["pulley"]["values"], float)
-        for model in models:
-            path = folder / f"{model}.yaml"
-            path.write_text(yaml.safe_dump(config(folder, model, poses // 2, weight_sigma=0.2), sort_keys=False))
-            try:
-                result = estimate(load_config(path))
-            except SolverError as exc:  # refused by the chi-square gate: recorded, not a table row
-                out[model] = {"rejected": str(exc)[:120]}
-                continue
-            pulleys = np.array([np.asarray(v, float) for v in result.parameters["cdpr"]["pulley"].values])
-            row = {"pulley_mm": 1e3 * float(np.mean(np.linalg.norm(pulleys - true_pulleys, axis=1))),
-                   "held_out_mm": 1e3 * held_out_rms(folder, model, result, poses // 2),
-                   "chi2_dof": float(result.solution.chi2_per_dof)}
-            if model == "catenary_weight":
-                est = result.parameters["cdpr"]["cable_weight"]
-                row["weight"] = (float(est.values[0]), float(est.sigma[0, 0]))
-            if model == "catenary_statics":
-                est = result.parameters["cdpr"]["centre_of_mass"]
-                row["com"] = [round(float(c), 4) for c in est.values[0]]
-            out[model] = row
-    return out
+        return {model: score(folder, model, config(folder, model, poses // 2, weight_sigma=0.2),
+                             lambda result, model=model: held_out_rms(folder, model, result, poses // 2))
+                for model in models}
 
 
 def main() -> None:
@@ -169,55 +179,23 @@ def held_out_moving(folder: Path, model: str, result, path: dict = PATH) -> floa
     """RMS (m) of the second half's lengths predicted at the measured poses interpolated at t + lag (the estimate)."""
     from scipy.spatial.transform import Rotation, Slerp
     from fusionkit.data.files import read_csv_stream
-    from fusionkit_plugins.cable_sag.measured_geometry import catenary_lengths
-    from fusionkit_plugins.cable_sag.model import shipped_robot
-    robot, _ = shipped_robot("cdpr_small")
-    params = result.parameters["cdpr"]
-    pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
-    offsets = np.array([float(v) for v in params["offset"].values])
-    lag = float(params["lag"].values[0])
-    w = {"rigid": 0.0, "catenary": robot.cable_weight}.get(model)
-    if w is None:
-        w = float(params["cable_weight"].values[0])
+    lag = float(result.parameters["cdpr"]["lag"].values[0])
     poses = np.loadtxt(folder / "data" / "poses.tum")
     stream = read_csv_stream(folder / "data" / "lengths.csv", "lengths")
     keep = (stream.t >= path["duration"] / 2) & (stream.t + lag <= poses[-1, 0])
     tau = stream.t[keep] + lag
     R = Slerp(poses[:, 0], Rotation.from_quat(poses[:, 4:8]))(tau).as_matrix()
     t = np.column_stack([np.interp(tau, poses[:, 0], poses[:, c]) for c in (1, 2, 3)])
-    predicted = catenary_lengths(R, t, np.broadcast_to(pulleys, (len(t),) + pulleys.shape), robot.attachments,
-                                 robot.com, robot.weight, np.full(len(t), w)) + offsets
-    return float(np.sqrt(np.mean((predicted - stream.values[keep]) ** 2)))
+    return float(np.sqrt(np.mean((predicted_lengths(result, model, R, t) - stream.values[keep]) ** 2)))
 
 
 def run_moving(seed: int, models=("rigid", "catenary", "catenary_weight"), path: dict = PATH) -> dict:
-    """{model: {pulley_mm, held_out_mm, chi2_dof, lag_ms (estimate, sigma), weight where estimated}}."""
-    from fusionkit.config.loader import load_config
-    from fusionkit.errors import SolverError
-    from fusionkit.pipeline import estimate
-    out = {}
+    """{model: score(...)} on the moving robot, with the time offset lag_ms estimated."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = moving_dataset(Path(tmp) / "ds", seed, path)
-        truth = yaml.safe_load((folder / "truth" / "calibration.yaml").read_text())["robots"]["cdpr"]
-        true_pulleys = np.asarray(truth["pulley"]["values"], float)
-        for model in models:
-            file = folder / f"{model}.yaml"
-            file.write_text(yaml.safe_dump(moving_config(folder, model, path), sort_keys=False))
-            try:
-                result = estimate(load_config(file))
-            except SolverError as exc:
-                out[model] = {"rejected": str(exc)[:120]}
-                continue
-            params = result.parameters["cdpr"]
-            pulleys = np.array([np.asarray(v, float) for v in params["pulley"].values])
-            row = {"pulley_mm": 1e3 * float(np.mean(np.linalg.norm(pulleys - true_pulleys, axis=1))),
-                   "held_out_mm": 1e3 * held_out_moving(folder, model, result, path),
-                   "chi2_dof": float(result.solution.chi2_per_dof),
-                   "lag_ms": (1e3 * float(params["lag"].values[0]), 1e3 * float(params["lag"].sigma[0, 0]))}
-            if model == "catenary_weight":
-                row["weight"] = (float(params["cable_weight"].values[0]), float(params["cable_weight"].sigma[0, 0]))
-            out[model] = row
-    return out
+        return {model: score(folder, model, moving_config(folder, model, path),
+                             lambda result, model=model: held_out_moving(folder, model, result, path))
+                for model in models}
 
 
 if __name__ == "__main__":
